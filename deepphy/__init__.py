@@ -1,0 +1,1 @@
+"""deepphy: the DeepPHY benchmark harness."""
