@@ -1,0 +1,166 @@
+"""The environment contract every DeepPHY environment implements.
+
+Gymnasium-shaped: `reset(task)` starts an attempt and returns the first observation,
+`step(action)` applies one decision. An in-advance environment (PHYRE, I-PHYRE) takes one
+step per attempt (the whole plan); an on-the-fly one takes up to `max_steps` decisions.
+
+The action syntax lives in the environment's `ActionSpace`: it parses model text into a
+validated `Action` (or raises `InvalidAction` with a reason), samples a random valid
+action for MOCK and writes an action back as text. The space travels inside every
+observation, so whoever holds an observation can parse and sample without a live
+simulator.
+
+Environments know nothing of Ray, prompts or models.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from abc import ABC, abstractmethod
+from enum import Enum
+from typing import Any, ClassVar, Sequence
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from deepphy.envs.images import Image
+
+
+class Planning(str, Enum):
+    IN_ADVANCE = "in_advance"  # one complete plan per attempt, simulated to the end
+    ON_THE_FLY = "on_the_fly"  # act, observe, act again within an attempt
+
+
+class InvalidAction(ValueError):
+    """Model text that is not a valid action. The message is the recorded reason."""
+
+
+class Task(BaseModel):
+    """One benchmark task. `id` is unique within its environment and filesystem-safe."""
+
+    model_config = ConfigDict(frozen=True)
+
+    env: str
+    id: str
+    group: str = ""  # reporting breakdown: Kinetix size, PHYRE split, ...
+    params: dict[str, Any] = Field(default_factory=dict)
+
+
+class Action(BaseModel):
+    """A validated action. Subclasses hold the environment's fields."""
+
+    model_config = ConfigDict(frozen=True)
+
+
+class ActionSpace(BaseModel, ABC):
+    """A typed, serialisable action space that owns the action syntax.
+
+    Subclasses set a unique `kind` so a space can be rebuilt from JSON
+    (`ActionSpace.from_json`), e.g. by a model server that only sees the request.
+    """
+
+    kind: str
+    _registry: ClassVar[dict[str, type["ActionSpace"]]] = {}
+
+    @classmethod
+    def __pydantic_init_subclass__(cls, **kwargs: Any) -> None:
+        super().__pydantic_init_subclass__(**kwargs)
+        default = cls.model_fields["kind"].default
+        if isinstance(default, str):
+            ActionSpace._registry[default] = cls
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> "ActionSpace":
+        try:
+            space_cls = ActionSpace._registry[data["kind"]]
+        except KeyError:
+            raise ValueError(f"unknown action space kind {data.get('kind')!r}") from None
+        return space_cls.model_validate(data)
+
+    @abstractmethod
+    def parse(self, text: str) -> Action:
+        """Model text -> validated action; raises InvalidAction(reason)."""
+
+    @abstractmethod
+    def sample(self, rng: np.random.Generator, exclude: Sequence[Action] = ()) -> Action:
+        """A uniformly random valid action, avoiding `exclude` where the space allows."""
+
+    @abstractmethod
+    def format(self, action: Action) -> str:
+        """The action in the exact syntax the prompt asks for (parse(format(a)) == a)."""
+
+
+class Observation(BaseModel):
+    """What the agent is shown before a decision."""
+
+    model_config = ConfigDict(arbitrary_types_allowed=True)
+
+    images: list[Image]  # e.g. the raw scene and the annotated scene
+    text: str = ""  # textual state: remaining birds, balls on the table, goal distances
+    action_space: ActionSpace
+
+    def image(self, name: str) -> Image:
+        return next(i for i in self.images if i.name == name)
+
+
+class StepResult(BaseModel):
+    """The consequence of one decision."""
+
+    model_config = ConfigDict(arbitrary_types_allowed=True)
+
+    done: bool  # the attempt is over
+    success: bool = False
+    invalid_reason: str | None = None  # a physically invalid action (e.g. overlapping placement)
+    observation: Observation | None = None  # next observation while not done
+    feedback: str = ""  # what happened, in words, for the history shown in later prompts
+    key_frames: list[Image] = Field(default_factory=list)  # what happened, as images
+    stars: int | None = None
+    score: float | None = None
+    info: dict[str, Any] = Field(default_factory=dict)  # JSON-able details (end time, ...)
+
+
+class EnvOptions(BaseModel):
+    """Options of an environment, set from the run config. Subclass to add fields."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+class Environment(ABC):
+    """One live environment instance: runs attempts of any of its tasks, one at a time."""
+
+    name: ClassVar[str]
+    title: ClassVar[str]
+    planning: ClassVar[Planning]
+    max_attempts: ClassVar[int]  # attempts per task (protocol K)
+    max_steps: ClassVar[int]  # decisions per attempt (1 for in-advance planning)
+    Options: ClassVar[type[EnvOptions]] = EnvOptions
+
+    def __init__(self, options: EnvOptions | None = None) -> None:
+        self.options = options if options is not None else self.Options()
+
+    @classmethod
+    @abstractmethod
+    def tasks(cls, options: EnvOptions) -> list[Task]:
+        """The default evaluation set, in a stable order."""
+
+    @abstractmethod
+    def reset(self, task: Task) -> Observation:
+        """Start an attempt from the task's initial state."""
+
+    @abstractmethod
+    def step(self, action: Action) -> StepResult:
+        """Apply one decision of the current attempt."""
+
+    def close(self) -> None:
+        """Free simulator resources."""
+
+    @classmethod
+    def step_many(cls, envs: Sequence["Environment"], actions: Sequence[Action]) -> list[StepResult]:
+        """Step several instances at once. Environments that can batch (vmap) override this."""
+        return [env.step(action) for env, action in zip(envs, actions)]
+
+
+def seeded_rng(*keys: Any) -> np.random.Generator:
+    """A generator that depends only on `keys`: stable across processes and machines."""
+    digest = hashlib.sha256(repr(keys).encode()).digest()
+    return np.random.default_rng(int.from_bytes(digest[:16], "little"))

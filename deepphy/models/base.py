@@ -1,0 +1,68 @@
+"""The model interface: prompt messages in, text plus token usage out.
+
+Every model, MOCK included, is reached through `ModelClient.complete`, so the parsing
+path is exercised the same way for a random baseline and for a real VLM.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any
+
+from pydantic import BaseModel, Field
+
+from deepphy.prompts import Message, PromptFormat
+
+
+class RequestContext(BaseModel):
+    """What deepphy knows about a request. Real providers never see it; MOCK answers from it."""
+
+    env: str
+    task_id: str
+    run: int
+    attempt: int
+    step: int
+    seed: int
+    format: PromptFormat
+    action_space: dict[str, Any]  # ActionSpace JSON (see ActionSpace.from_json)
+    tried: list[str] = Field(default_factory=list)  # actions of failed attempts of this task
+
+
+class ModelRequest(BaseModel):
+    messages: list[Message]
+    temperature: float = 0.1
+    max_tokens: int = 1024
+    context: RequestContext
+
+
+class Usage(BaseModel):
+    input_tokens: int = 0
+    output_tokens: int = 0
+    cost_usd: float = 0.0
+
+    def __add__(self, other: "Usage") -> "Usage":
+        return Usage(
+            input_tokens=self.input_tokens + other.input_tokens,
+            output_tokens=self.output_tokens + other.output_tokens,
+            cost_usd=self.cost_usd + other.cost_usd,
+        )
+
+
+class ModelResponse(BaseModel):
+    text: str
+    usage: Usage = Field(default_factory=Usage)
+    retries: int = 0  # transport retries it took (429, 5xx, timeouts)
+
+
+class ModelError(RuntimeError):
+    """The provider could not answer (after retries). Not a wrong answer: the attempt is re-queued."""
+
+
+class ModelClient(ABC):
+    name: str
+
+    @abstractmethod
+    async def complete(self, request: ModelRequest) -> ModelResponse: ...
+
+    async def close(self) -> None:
+        """Release connections."""

@@ -1,0 +1,201 @@
+"""Prompt construction shared by all environments: message types, formats, history.
+
+An environment's prompt module (deepphy/prompts/<env>.py) supplies the words: the legend
+of the scene, the goal, the action syntax with its ranges and the validity rules. This
+module assembles them with the observation and the history of failed attempts into chat
+messages, and splits a reply into the WM prediction and the action text.
+Prompts know nothing of Ray or of model providers.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from abc import ABC, abstractmethod
+from enum import Enum
+from typing import ClassVar, Literal, Sequence, Union
+
+from pydantic import BaseModel, Field
+
+from deepphy.envs import Image, Observation, Task
+
+
+class PromptFormat(str, Enum):
+    VLA = "vla"  # rules + observation (+ history) -> the action only
+    WM = "wm"  # the same, but a prediction of the consequences comes before the action
+
+
+class TextPart(BaseModel):
+    type: Literal["text"] = "text"
+    text: str
+
+
+class ImagePart(BaseModel):
+    type: Literal["image"] = "image"
+    image: Image
+
+
+class Message(BaseModel):
+    role: Literal["system", "user", "assistant"]
+    content: list[Union[TextPart, ImagePart]]
+
+    @property
+    def text(self) -> str:
+        return "\n".join(p.text for p in self.content if isinstance(p, TextPart))
+
+    @property
+    def images(self) -> list[Image]:
+        return [p.image for p in self.content if isinstance(p, ImagePart)]
+
+
+class PastAttempt(BaseModel):
+    """A failed attempt, as shown to the agent before its next one."""
+
+    attempt: int
+    actions: list[str]  # the actions as submitted (canonical text, or the raw text if invalid)
+    outcome: str  # what happened, in words
+    key_frames: list[Image] = Field(default_factory=list)
+
+
+class PastStep(BaseModel):
+    """An earlier decision within the current attempt (on-the-fly environments)."""
+
+    step: int
+    action: str
+    feedback: str = ""
+    frame: Image | None = None
+
+
+class EnvPrompt(ABC):
+    """The words for one environment."""
+
+    env: ClassVar[str]
+    recent_steps_shown: ClassVar[int] = 5  # on-the-fly: how many earlier decisions to show
+
+    @abstractmethod
+    def rules(self, task: Task, observation: Observation) -> str:
+        """Legend of the scene, goal, action syntax with ranges, validity rules."""
+
+    @abstractmethod
+    def example(self, observation: Observation) -> str:
+        """An example action in the exact syntax (shown in the reply instructions)."""
+
+    @abstractmethod
+    def prediction_hint(self) -> str:
+        """WM only: what the prediction should describe (e.g. where the ball will land)."""
+
+
+def _vla_instructions(example: str) -> str:
+    return (
+        "Reply with the action only, in exactly this syntax, and nothing else:\n"
+        f"{example}"
+    )
+
+
+def _wm_instructions(example: str, hint: str) -> str:
+    return (
+        "First predict what your action will cause, then give the action. Reply in exactly "
+        "this form:\n"
+        f"Prediction: <{hint}>\n"
+        f"Action: {example}"
+    )
+
+
+def build_messages(
+    prompt: EnvPrompt,
+    fmt: PromptFormat,
+    task: Task,
+    observation: Observation,
+    history: list[PastAttempt],
+    recent: Sequence[PastStep] = (),
+) -> list[Message]:
+    """The chat messages for one decision."""
+    example = prompt.example(observation)
+    instructions = (
+        _vla_instructions(example)
+        if fmt is PromptFormat.VLA
+        else _wm_instructions(example, prompt.prediction_hint())
+    )
+    system = Message(role="system", content=[TextPart(text=prompt.rules(task, observation) + "\n\n" + instructions)])
+
+    parts: list[TextPart | ImagePart] = []
+    if history:
+        parts.append(TextPart(text=f"Your previous {len(history)} attempt(s) at this task failed:"))
+        for past in history:
+            acts = "; ".join(past.actions) if past.actions else "(none)"
+            parts.append(TextPart(text=f"Attempt {past.attempt}: action(s) {acts}. Outcome: {past.outcome}"))
+            for frame in past.key_frames:
+                parts.append(TextPart(text=f"Attempt {past.attempt}, {frame.caption}:"))
+                parts.append(ImagePart(image=frame))
+        parts.append(TextPart(text="Every attempt starts again from the same initial state."))
+    shown = list(recent)[-prompt.recent_steps_shown :]
+    if shown:
+        parts.append(TextPart(text="Your earlier decisions in this attempt, oldest first:"))
+        for past in shown:
+            line = f"Step {past.step}: {past.action}"
+            parts.append(TextPart(text=line + (f" -> {past.feedback}" if past.feedback else "")))
+            if past.frame is not None:
+                parts.append(ImagePart(image=past.frame))
+    parts.append(TextPart(text="Current observation:"))
+    for image in observation.images:
+        parts.append(TextPart(text=image.caption))
+        parts.append(ImagePart(image=image))
+    if observation.text:
+        parts.append(TextPart(text=observation.text))
+    parts.append(TextPart(text="Your action:" if fmt is PromptFormat.VLA else "Your prediction and action:"))
+    return [system, Message(role="user", content=parts)]
+
+
+_PREDICTION = re.compile(r"prediction\s*[:\-]\s*(.*?)(?=\n\s*\**\s*action\s*\**\s*[:\-]|\Z)", re.I | re.S)
+_ACTION = re.compile(r"(?:^|\n)\s*\**\s*action\s*\**\s*[:\-]\s*(.*)\Z", re.I | re.S)
+
+
+def split_reply(fmt: PromptFormat, text: str) -> tuple[str | None, str]:
+    """(prediction, action text). The action text is handed to the space's parser as is.
+
+    WM replies carry `Prediction: ... Action: ...`; a WM reply with no `Action:` section
+    is parsed whole, so a bare action still counts, and its prediction is None.
+    """
+    if fmt is PromptFormat.VLA:
+        return None, text
+    prediction = _PREDICTION.search(text)
+    action = _ACTION.search(text)
+    return (
+        prediction.group(1).strip() if prediction else None,
+        action.group(1).strip().lstrip("*").strip() if action else text,
+    )
+
+
+def mock_reply(fmt: PromptFormat, action_text: str) -> str:
+    """A reply in the requested format carrying `action_text` (MOCK's answer)."""
+    if fmt is PromptFormat.VLA:
+        return action_text
+    return f"Prediction: no prediction (random baseline).\nAction: {action_text}"
+
+
+def prompt_digest(messages: list[Message]) -> str:
+    """A content hash of the prompt, used to store each distinct prompt text once."""
+    h = hashlib.sha256()
+    for m in messages:
+        h.update(m.role.encode())
+        for p in m.content:
+            h.update(p.text.encode() if isinstance(p, TextPart) else hashlib.sha256(p.image.png).digest())
+    return h.hexdigest()[:20]
+
+
+def prompt_as_json(messages: list[Message]) -> str:
+    """The prompt text with image placeholders, for the run directory."""
+    out = []
+    for m in messages:
+        out.append(
+            {
+                "role": m.role,
+                "content": [
+                    p.text if isinstance(p, TextPart) else f"<image {p.image.name}: {p.image.caption}>"
+                    for p in m.content
+                ],
+            }
+        )
+    return json.dumps(out, indent=1)
+
