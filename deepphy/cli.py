@@ -1,0 +1,185 @@
+"""The `deepphy` command: run, report, envs, show."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from deepphy.config import DEFAULT_OUT, RunConfig, RuntimeOptions
+
+
+class UserError(Exception):
+    """Anything the user can fix. Printed as one line; exit status 2."""
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, not usage + error
+        raise UserError(message)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = Parser(prog="deepphy", description="Evaluate vision-language models on interactive physics (DeepPHY).")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
+
+    run = sub.add_parser("run", help="run or resume an evaluation into a run directory")
+    run.add_argument("--env", default="iphyre", help="environment (see `deepphy envs`); default iphyre")
+    run.add_argument("--model", default="mock", help="model name; default mock (random valid actions)")
+    run.add_argument("--format", default="vla", choices=["vla", "wm"], help="prompt format; default vla")
+    run.add_argument("--runs", type=int, default=3, help="repetitions of every task; default 3")
+    run.add_argument("--seed", type=int, default=0, help="seed of MOCK and of any sampling; default 0")
+    run.add_argument("--out", default=DEFAULT_OUT, help=f"run directory; default {DEFAULT_OUT}")
+    run.add_argument("--tasks", help="comma-separated task ids (default: the evaluation set)")
+    run.add_argument("--limit", type=int, help="only the first N tasks")
+    run.add_argument("--max-attempts", type=int, help="attempts per task (default: the protocol's)")
+    run.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
+                     help="environment option, e.g. annotate=false (repeatable)")
+    run.add_argument("--address", help="join an existing Ray cluster (default: start a local one)")
+    run.add_argument("--num-cpus", type=int, default=2, help="CPUs of the local cluster; default 2")
+    run.add_argument("--env-workers", type=int, help="environment worker actors (default: one per CPU)")
+    run.add_argument("--max-in-flight", type=int, default=256, help="episodes in progress at once; default 256")
+    run.add_argument("--no-progress", action="store_true", help="no live progress line")
+
+    rep = sub.add_parser("report", help="print the paper-style table of a run directory")
+    rep.add_argument("run_dir")
+    fmt = rep.add_mutually_exclusive_group()
+    for flag in ("json", "csv", "markdown"):
+        fmt.add_argument(f"--{flag}", action="store_true", help=f"print {flag} instead of a text table")
+
+    envs = sub.add_parser("envs", help="list environments and their task counts")
+    envs.add_argument("--tasks", metavar="ENV", help="list the task ids of one environment")
+
+    show = sub.add_parser("show", help="write the images a model would see for one task")
+    show.add_argument("--env", required=True)
+    show.add_argument("--task", required=True)
+    show.add_argument("--out", required=True, help="directory for the PNG files")
+    show.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE")
+    return p
+
+
+def _env_options(pairs: list[str]) -> dict[str, object]:
+    import json
+
+    options: dict[str, object] = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise UserError(f"--env-option expects KEY=VALUE, got {pair!r}")
+        try:
+            options[key] = json.loads(value)
+        except json.JSONDecodeError:
+            options[key] = value
+    return options
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from deepphy.runner import evaluate
+
+    try:
+        config = RunConfig(
+            env=args.env, model=args.model, format=args.format, runs=args.runs, seed=args.seed,
+            tasks=[t for t in args.tasks.split(",") if t] if args.tasks else None,
+            limit=args.limit, max_attempts=args.max_attempts, env_options=_env_options(args.env_option),
+        )
+        runtime = RuntimeOptions(
+            address=args.address, num_cpus=args.num_cpus, env_workers=args.env_workers,
+            max_in_flight=args.max_in_flight, progress=not args.no_progress,
+        )
+    except ValidationError as e:
+        err = e.errors()[0]
+        where = ".".join(map(str, err["loc"]))
+        raise UserError(f"{where + ': ' if where else ''}{err['msg'].removeprefix('Value error, ')}") from None
+    outcome = evaluate(config, args.out, runtime)
+    print(f"run directory: {outcome.out} ({outcome.episodes_done}/{outcome.episodes_total} episodes complete, "
+          f"{outcome.new_records} new attempt records)")
+    if not outcome.complete:
+        for line in outcome.unfinished[:10]:
+            print(f"unfinished: {line}", file=sys.stderr)
+        print("the run is incomplete; run the same command again to resume it", file=sys.stderr)
+        return 1
+    print(f"next: deepphy report {outcome.out}")
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from deepphy.metrics.report import build_report, render_csv, render_json, render_markdown, render_text
+    from deepphy.runner import resolve
+    from deepphy.runs.store import read_config, read_records
+
+    config = read_config(args.run_dir)
+    _, tasks, k_max = resolve(config)
+    report = build_report(config, tasks, read_records(args.run_dir), k_max)
+    render = render_json if args.json else render_csv if args.csv else render_markdown if args.markdown else render_text
+    print(render(report))
+    return 0
+
+
+def cmd_envs(args: argparse.Namespace) -> int:
+    from collections import Counter
+
+    from deepphy.envs import ENVIRONMENTS, get_env_class
+
+    if args.tasks:
+        cls = get_env_class(args.tasks)
+        for t in cls.tasks(cls.Options()):
+            print(f"{t.id}\t{t.group}")
+        return 0
+    print(f"{'env':10} {'title':12} {'tasks':>6}  {'planning':11} {'K':>3} {'steps':>5}  groups")
+    for name in ENVIRONMENTS:
+        cls = get_env_class(name)
+        tasks = cls.tasks(cls.Options())
+        groups = Counter(t.group for t in tasks if t.group)
+        print(f"{name:10} {cls.title:12} {len(tasks):6d}  {cls.planning.value:11} {cls.max_attempts:3d} "
+              f"{cls.max_steps:5d}  {', '.join(f'{g} {n}' for g, n in groups.items())}")
+    return 0
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    from deepphy.envs import get_env_class
+
+    cls = get_env_class(args.env)
+    try:
+        options = cls.Options(**_env_options(args.env_option))
+    except ValidationError as e:
+        raise UserError(f"bad option for {args.env}: {e.errors()[0]['msg']}") from None
+    tasks = {t.id: t for t in cls.tasks(options)}
+    if args.task not in tasks:
+        raise UserError(f"unknown {args.env} task {args.task!r}; see `deepphy envs --tasks {args.env}`")
+    observation = cls(options).reset(tasks[args.task])
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for image in observation.images:
+        path = out / f"{args.env}_{args.task}_{image.name}.png"
+        path.write_bytes(image.png)
+        print(f"{path}  ({image.caption})")
+    if observation.text:
+        (out / f"{args.env}_{args.task}_state.txt").write_text(observation.text + "\n")
+        print(f"{out / f'{args.env}_{args.task}_state.txt'}  (text state)")
+    return 0
+
+
+COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_show}
+
+
+def main(argv: list[str] | None = None) -> int:
+    from deepphy.envs import UnknownEnvironment
+    from deepphy.models import UnknownModel
+    from deepphy.runner import ConfigError, quiet_environment
+    from deepphy.runs.store import RunDirError
+
+    quiet_environment()
+    try:
+        args = build_parser().parse_args(argv)
+        return COMMANDS[args.command](args)
+    except (UserError, ConfigError, RunDirError, UnknownEnvironment, UnknownModel) as e:
+        print(f"deepphy: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("deepphy: interrupted; run the same command again to resume", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,52 @@
+"""Run configuration: what to evaluate (stored with the run) and how to run it (not stored)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from deepphy.prompts.base import PromptFormat
+
+DEFAULT_OUT = "runs/demo"
+
+
+class RunConfig(BaseModel):
+    """What a run evaluates. Written to <run dir>/config.json; a resume must match it exactly."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    env: str = "iphyre"
+    model: str = "mock"
+    format: PromptFormat = PromptFormat.VLA
+    runs: int = Field(3, ge=1, description="independent repetitions of every task")
+    seed: int = 0
+    tasks: list[str] | None = Field(None, description="task ids; default: the environment's evaluation set")
+    limit: int | None = Field(None, ge=1, description="only the first N tasks of the set")
+    max_attempts: int | None = Field(None, ge=1, description="attempts per task; default: the protocol's K")
+    env_options: dict[str, Any] = Field(default_factory=dict)
+    temperature: float = 0.1
+    max_tokens: int = Field(1024, ge=1)
+
+    @model_validator(mode="after")
+    def _known_names(self) -> "RunConfig":
+        from deepphy.envs import ENVIRONMENTS, UnknownEnvironment
+
+        if self.env not in ENVIRONMENTS:
+            raise ValueError(str(UnknownEnvironment(self.env)))
+        return self
+
+
+class RuntimeOptions(BaseModel):
+    """How a run executes. Free to change between a run and its resume."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    address: str | None = None  # join an existing Ray cluster; None: start a local one
+    num_cpus: int = Field(2, ge=1)  # local cluster only
+    env_workers: int | None = Field(None, ge=1)  # default: one per CPU of the cluster
+    max_in_flight: int = Field(256, ge=1)  # episodes (task x run) in progress at once
+    progress: bool = True
+    step_timeout_s: float = Field(600.0, gt=0)  # one env call (first Kinetix step compiles)
+    model_timeout_s: float = Field(900.0, gt=0)  # one model call, retries included
+    attempt_retries: int = Field(3, ge=0)  # re-runs of an attempt whose worker died

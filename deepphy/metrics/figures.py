@@ -1,0 +1,149 @@
+"""The protocol's figures, as pure functions of attempt records.
+
+Every figure is computed per run (one repetition of every task) and then averaged over
+runs with a sample standard deviation. An episode is one (task, run): its attempts run
+until the first success or until K attempts are used.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from dataclasses import dataclass, field
+from statistics import mean, stdev
+from typing import Iterable, Sequence
+
+from deepphy.runs.records import AttemptRecord
+
+
+@dataclass(frozen=True)
+class Episode:
+    task: str
+    group: str
+    run: int
+    attempts: int  # attempts used
+    solved_at: int | None  # attempt number of the success, if any
+    invalid: int  # attempts that ended on an invalid action
+    steps_to_solve: int | None  # decisions used in the solving attempt
+    stars: int | None  # stars of the best attempt (solved attempt if any)
+    model_errors: int
+    retries: int
+    input_tokens: int
+    output_tokens: int
+    cost_usd: float
+
+    @property
+    def solved(self) -> bool:
+        return self.solved_at is not None
+
+    @property
+    def valid_attempts_to_solve(self) -> int | None:
+        """Attempt number of the success counting valid attempts only (PHYRE's AUCCESS rule)."""
+        return None if self.solved_at is None else self.solved_at - self.invalid
+
+
+def episodes(records: Iterable[AttemptRecord]) -> list[Episode]:
+    """Group records into episodes. Attempts after a success (there should be none) are ignored."""
+    by_episode: dict[tuple[str, int], list[AttemptRecord]] = defaultdict(list)
+    for r in records:
+        by_episode[(r.task, r.run)].append(r)
+    out = []
+    for (task, run), recs in sorted(by_episode.items()):
+        recs.sort(key=lambda r: r.attempt)
+        solved = next((r for r in recs if r.success), None)
+        if solved is not None:
+            recs = [r for r in recs if r.attempt <= solved.attempt]
+        stars = [r.stars for r in recs if r.stars is not None]
+        out.append(
+            Episode(
+                task=task,
+                group=recs[0].group,
+                run=run,
+                attempts=len(recs),
+                solved_at=solved.attempt if solved else None,
+                invalid=sum(r.invalid for r in recs),
+                steps_to_solve=len(solved.steps) if solved else None,
+                stars=(solved.stars if solved and solved.stars is not None else (max(stars) if stars else None)),
+                model_errors=sum(r.model_stats.model_errors for r in recs),
+                retries=sum(r.model_stats.retries for r in recs),
+                input_tokens=sum(r.model_stats.usage.input_tokens for r in recs),
+                output_tokens=sum(r.model_stats.usage.output_tokens for r in recs),
+                cost_usd=sum(r.model_stats.usage.cost_usd for r in recs),
+            )
+        )
+    return out
+
+
+def success_at(eps: Sequence[Episode], k: int, n_tasks: int | None = None) -> float:
+    """Fraction of tasks solved within k attempts (cumulative; the paper's Att. k / Pass@k)."""
+    n = n_tasks if n_tasks is not None else len(eps)
+    return sum(1 for e in eps if e.solved_at is not None and e.solved_at <= k) / n if n else 0.0
+
+
+def success_within_steps(eps: Sequence[Episode], k: int, n_tasks: int | None = None) -> float:
+    """Fraction of tasks solved within k decisions (Pooltool's shots 1, 3, 6, ...)."""
+    n = n_tasks if n_tasks is not None else len(eps)
+    return sum(1 for e in eps if e.steps_to_solve is not None and e.steps_to_solve <= k) / n if n else 0.0
+
+
+def average_attempts(eps: Sequence[Episode]) -> float | None:
+    """Mean attempts used, over solved episodes only (None if nothing was solved)."""
+    solved = [e.solved_at for e in eps if e.solved_at is not None]
+    return mean(solved) if solved else None
+
+
+def average_steps(eps: Sequence[Episode]) -> float | None:
+    """Mean decisions used by the solving attempt, over solved episodes only."""
+    solved = [e.steps_to_solve for e in eps if e.steps_to_solve is not None]
+    return mean(solved) if solved else None
+
+
+def auccess(eps: Sequence[Episode], n_tasks: int | None = None, max_k: int = 100) -> float:
+    """PHYRE's AUCCESS: sum_k w_k s_k / sum_k w_k, w_k = log(k+1) - log(k), k = 1..100,
+    with s_k counting valid attempts only. With at most K attempts recorded, s_k stays at
+    s_K for k > K, so this is a lower bound on the original 100-attempt figure."""
+    weights = [math.log(k + 1) - math.log(k) for k in range(1, max_k + 1)]
+    n = n_tasks if n_tasks is not None else len(eps)
+    if not n:
+        return 0.0
+    solved = sorted(e.valid_attempts_to_solve for e in eps if e.valid_attempts_to_solve is not None)
+    total, i = 0.0, 0
+    for k, w in enumerate(weights, 1):
+        while i < len(solved) and solved[i] <= k:
+            i += 1
+        total += w * i / n
+    return total / sum(weights)
+
+
+@dataclass
+class StarFigures:
+    total: int
+    mean_all: float  # over all tasks (unfinished count 0)
+    mean_completed: float | None  # over solved tasks
+    levels_with: dict[int, int]  # stars -> number of solved tasks with exactly that many
+
+
+def stars(eps: Sequence[Episode], n_tasks: int | None = None) -> StarFigures:
+    n = n_tasks if n_tasks is not None else len(eps)
+    got = [e.stars or 0 for e in eps]
+    completed = [e.stars or 0 for e in eps if e.solved]
+    return StarFigures(
+        total=sum(got),
+        mean_all=sum(got) / n if n else 0.0,
+        mean_completed=mean(completed) if completed else None,
+        levels_with={s: sum(1 for c in completed if c == s) for s in (1, 2, 3)},
+    )
+
+
+@dataclass
+class MeanStd:
+    mean: float | None
+    std: float | None
+    values: list[float | None] = field(default_factory=list)
+
+    @classmethod
+    def of(cls, values: Sequence[float | None]) -> "MeanStd":
+        present = [v for v in values if v is not None]
+        if not present:
+            return cls(None, None, list(values))
+        return cls(mean(present), stdev(present) if len(present) > 1 else 0.0, list(values))

@@ -1,0 +1,201 @@
+"""The paper-style report of a run directory: figures per run, mean and std over runs,
+overall and per task group, rendered as text, JSON, CSV or Markdown."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from collections import defaultdict
+from typing import Any, Sequence
+
+from deepphy.config import RunConfig
+from deepphy.envs import Task
+from deepphy.metrics import figures as F
+from deepphy.runs.records import AttemptRecord
+
+# Decision checkpoints reported for single-attempt, many-decision environments.
+STEP_CHECKPOINTS: dict[str, tuple[int, ...]] = {"pooltool": (1, 3, 6, 9, 12, 15)}
+AUCCESS_ENVS = {"phyre"}
+
+
+def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, env: str, run: int) -> dict[str, Any]:
+    finished = [e for e in eps if e.solved or e.attempts >= k_max]
+    solved = sum(e.solved for e in eps)
+    out: dict[str, Any] = {
+        "run": run,
+        "tasks": n_tasks,
+        "solved": solved,
+        "unsolved": len(finished) - solved,
+        "unfinished": n_tasks - len(finished),
+        "success_at": [F.success_at(eps, k, n_tasks) for k in range(1, k_max + 1)],
+        "avg_attempts": F.average_attempts(eps),
+        "attempts": sum(e.attempts for e in eps),
+        "invalid_attempts": sum(e.invalid for e in eps),
+        "model_errors": sum(e.model_errors for e in eps),
+        "retries": sum(e.retries for e in eps),
+        "input_tokens": sum(e.input_tokens for e in eps),
+        "output_tokens": sum(e.output_tokens for e in eps),
+        "cost_usd": sum(e.cost_usd for e in eps),
+    }
+    if env in STEP_CHECKPOINTS:
+        out["success_within_steps"] = {str(k): F.success_within_steps(eps, k, n_tasks) for k in STEP_CHECKPOINTS[env]}
+        out["avg_steps"] = F.average_steps(eps)
+    if env in AUCCESS_ENVS:
+        out["auccess"] = F.auccess(eps, n_tasks)
+    if any(e.stars is not None for e in eps):
+        s = F.stars(eps, n_tasks)
+        out["stars"] = {
+            "total": s.total,
+            "mean_all": s.mean_all,
+            "mean_completed": s.mean_completed,
+            "levels_with": {str(k): v for k, v in s.levels_with.items()},
+        }
+    return out
+
+
+def _mean_std(per_run: list[dict[str, Any]]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Mean and std over runs of every numeric figure (lists element-wise, dicts per key)."""
+
+    def combine(values: list[Any]) -> tuple[Any, Any]:
+        first = values[0]
+        if isinstance(first, list):
+            pairs = [combine([v[i] for v in values]) for i in range(len(first))]
+            return [p[0] for p in pairs], [p[1] for p in pairs]
+        if isinstance(first, dict):
+            pairs = {k: combine([v[k] for v in values]) for k in first}
+            return {k: p[0] for k, p in pairs.items()}, {k: p[1] for k, p in pairs.items()}
+        ms = F.MeanStd.of(values)
+        return ms.mean, ms.std
+
+    keys = [k for k in per_run[0] if k != "run"]
+    means, stds = {}, {}
+    for k in keys:
+        means[k], stds[k] = combine([r[k] for r in per_run])
+    return means, stds
+
+
+def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int, env: str) -> dict[str, Any]:
+    by_run: dict[int, list[F.Episode]] = defaultdict(list)
+    for e in eps:
+        by_run[e.run].append(e)
+    per_run = [_run_figures(by_run.get(r, []), len(tasks), k_max, env, r) for r in range(runs)]
+    mean, std = _mean_std(per_run)
+    return {"tasks": len(tasks), "per_run": per_run, "mean": mean, "std": std}
+
+
+def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[AttemptRecord], k_max: int) -> dict[str, Any]:
+    wanted = {t.id for t in tasks}
+    eps = [e for e in F.episodes(records) if e.task in wanted and e.run < config.runs]
+    report: dict[str, Any] = {
+        "env": config.env,
+        "model": config.model,
+        "format": config.format.value,
+        "runs": config.runs,
+        "seed": config.seed,
+        "max_attempts": k_max,
+        "env_options": config.env_options,
+        "overall": _section(eps, tasks, config.runs, k_max, config.env),
+    }
+    groups = sorted({t.group for t in tasks if t.group})
+    if len(groups) > 1:
+        report["groups"] = {
+            g: _section([e for e in eps if e.group == g], [t for t in tasks if t.group == g], config.runs, k_max, config.env)
+            for g in groups
+        }
+    return report
+
+
+# -- rendering --------------------------------------------------------------------------
+
+
+def _pct(m: float | None, s: float | None) -> str:
+    if m is None:
+        return "-"
+    return f"{100 * m:.1f}" + (f"±{100 * s:.1f}" if s else "")
+
+
+def _num(m: float | None, s: float | None, digits: int = 2) -> str:
+    if m is None:
+        return "-"
+    return f"{m:.{digits}f}" + (f"±{s:.{digits}f}" if s else "")
+
+
+def table(report: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+    """Header and rows: one row for all tasks, then one per group."""
+    k_max = report["max_attempts"]
+    header = ["tasks", "n"] + [f"Att.{k}" for k in range(1, k_max + 1)] + ["AvgAtt", "Solved", "Invalid"]
+    overall = report["overall"]
+    extra_steps = "success_within_steps" in overall["mean"]
+    if extra_steps:
+        header += [f"Shot{k}" for k in overall["mean"]["success_within_steps"]] + ["AvgShots"]
+    if "auccess" in overall["mean"]:
+        header.append("AUCCESS")
+    if "stars" in overall["mean"]:
+        header += ["Stars", "Stars/lvl", "Stars/done", "1*", "2*", "3*"]
+    if any(r["model_errors"] for r in overall["per_run"]):
+        header += ["ModelErr", "Retries"]
+    show_errors = "ModelErr" in header
+    if any(r["cost_usd"] or r["input_tokens"] for r in overall["per_run"]):
+        header += ["TokensIn", "TokensOut", "Cost$"]
+    show_cost = "Cost$" in header
+
+    def row(name: str, sec: dict[str, Any]) -> list[str]:
+        m, s = sec["mean"], sec["std"]
+        cells = [name, str(sec["tasks"])]
+        cells += [_pct(m["success_at"][i], s["success_at"][i]) for i in range(k_max)]
+        cells += [_num(m["avg_attempts"], s["avg_attempts"]), _num(m["solved"], s["solved"], 1), _num(m["invalid_attempts"], s["invalid_attempts"], 1)]
+        if extra_steps:
+            cells += [_pct(m["success_within_steps"][k], s["success_within_steps"][k]) for k in m["success_within_steps"]]
+            cells.append(_num(m["avg_steps"], s["avg_steps"]))
+        if "auccess" in m:
+            cells.append(_pct(m["auccess"], s["auccess"]))
+        if "stars" in m:
+            st, sd = m["stars"], s["stars"]
+            cells += [_num(st["total"], sd["total"], 1), _num(st["mean_all"], sd["mean_all"]), _num(st["mean_completed"], sd["mean_completed"])]
+            cells += [_num(st["levels_with"][k], sd["levels_with"][k], 1) for k in ("1", "2", "3")]
+        if show_errors:
+            cells += [_num(m["model_errors"], s["model_errors"], 1), _num(m["retries"], s["retries"], 1)]
+        if show_cost:
+            cells += [_num(m["input_tokens"], s["input_tokens"], 0), _num(m["output_tokens"], s["output_tokens"], 0), _num(m["cost_usd"], s["cost_usd"], 4)]
+        return cells
+
+    rows = [row("all", overall)]
+    for g, sec in report.get("groups", {}).items():
+        rows.append(row(g, sec))
+    return header, rows
+
+
+def render_text(report: dict[str, Any]) -> str:
+    header, rows = table(report)
+    widths = [max(len(header[i]), *(len(r[i]) for r in rows)) for i in range(len(header))]
+    fmt = lambda cells: "  ".join(c.rjust(w) for c, w in zip(cells, widths))  # noqa: E731
+    done = sum(r["tasks"] - r["unfinished"] for r in report["overall"]["per_run"])
+    total = report["overall"]["tasks"] * report["runs"]
+    title = (
+        f"{report['env']} · model {report['model']} · format {report['format'].upper()} · "
+        f"{report['runs']} run(s), seed {report['seed']} · episodes complete {done}/{total}"
+    )
+    lines = [title, "success rate (%) within k attempts, mean±std over runs", fmt(header), fmt(["-" * w for w in widths])]
+    lines += [fmt(r) for r in rows]
+    return "\n".join(lines)
+
+
+def render_markdown(report: dict[str, Any]) -> str:
+    header, rows = table(report)
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def render_csv(report: dict[str, Any]) -> str:
+    header, rows = table(report)
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(header)
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def render_json(report: dict[str, Any]) -> str:
+    return json.dumps(report, indent=2)

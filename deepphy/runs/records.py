@@ -1,0 +1,77 @@
+"""Attempt records: one per (task, run, attempt), the unit the run store keeps and metrics read."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, Field
+
+from deepphy.models.base import Usage
+
+
+class StepRecord(BaseModel):
+    """One decision: what was asked, what came back, what it did."""
+
+    step: int
+    prompt: str  # digest of the prompt; its text is in prompts/<digest>.json
+    raw_output: str
+    prediction: str | None = None  # WM format only
+    action: dict[str, Any] | None = None  # the parsed action; None if invalid
+    action_text: str | None = None  # the action in canonical syntax
+    invalid_reason: str | None = None
+    feedback: str = ""
+    info: dict[str, Any] = Field(default_factory=dict)
+
+
+class KeyFrame(BaseModel):
+    path: str  # relative to the run directory
+    caption: str
+
+
+class Timing(BaseModel):
+    """Wall-clock facts; the only part of a record that differs between identical runs."""
+
+    started: float = 0.0  # unix time
+    finished: float = 0.0
+    env_s: float = 0.0
+    model_s: float = 0.0
+
+
+class ModelStats(BaseModel):
+    """Provider-side facts; with a real model these vary between identical runs."""
+
+    usage: Usage = Field(default_factory=Usage)
+    retries: int = 0  # transport retries inside successful requests
+    model_errors: int = 0  # requests that failed for good; each re-queued the attempt
+
+
+class AttemptRecord(BaseModel):
+    env: str
+    task: str
+    group: str = ""
+    run: int
+    attempt: int  # 1-based
+    model: str
+    format: str
+    seed: int
+    steps: list[StepRecord]
+    success: bool
+    invalid_reason: str | None = None  # set when the attempt ended on an invalid action
+    stars: int | None = None
+    score: float | None = None
+    key_frames: list[KeyFrame] = Field(default_factory=list)
+    feedback: str = ""  # outcome in words, shown as history in later attempts
+    timing: Timing = Field(default_factory=Timing)
+    model_stats: ModelStats = Field(default_factory=ModelStats)
+
+    @property
+    def key(self) -> tuple[str, int, int]:
+        return self.task, self.run, self.attempt
+
+    @property
+    def invalid(self) -> bool:
+        return self.invalid_reason is not None
+
+    def deterministic_view(self) -> dict[str, Any]:
+        """The record without wall-clock and provider facts: equal for equal seeds."""
+        return self.model_dump(exclude={"timing", "model_stats"})

@@ -1,0 +1,177 @@
+"""The run directory: resolved config, an append-only attempt log, prompts and key frames.
+
+Layout:
+    config.json      the RunConfig, written once; a resume must present the same one
+    attempts.jsonl   one AttemptRecord per line, appended by the single driver
+    prompts/<digest>.json   each distinct prompt text once (images as placeholders)
+    frames/<task>/r<run>_a<attempt>_<name>.png   key frames, referenced by records
+    .lock            held (flock) while a run writes, so two runs cannot interleave
+
+Crash safety: a record is one `write` of one line on an O_APPEND descriptor, made after
+its frames are on disk. A run killed mid-write leaves at most a torn last line; opening
+the store drops it (it has no newline) before appending again, so every (task, run,
+attempt) appears exactly once.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from deepphy.config import RunConfig
+from deepphy.runs.records import AttemptRecord
+
+CONFIG = "config.json"
+ATTEMPTS = "attempts.jsonl"
+
+
+class RunDirError(RuntimeError):
+    """A run directory that cannot be used as asked. The message is for the user."""
+
+
+class RunStore:
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self._fd: int | None = None
+        self._lock_fd: int | None = None
+        self._prompts: set[str] = set()
+
+    # -- opening ----------------------------------------------------------------------
+
+    @classmethod
+    def create_or_resume(cls, path: str | Path, config: RunConfig) -> "RunStore":
+        """Open for writing: a new directory, or the resume of a run with the same config."""
+        store = cls(Path(path))
+        if store.path.exists() and not store.path.is_dir():
+            raise RunDirError(f"{store.path} exists and is not a directory")
+        existing = store.path / CONFIG
+        if existing.exists():
+            previous = read_config(store.path)
+            if previous != config:
+                diff = _diff(previous.model_dump(mode="json"), config.model_dump(mode="json"))
+                raise RunDirError(
+                    f"{store.path} holds a run with a different config ({diff}); "
+                    "resume it with the same options or choose another --out"
+                )
+        try:
+            store.path.mkdir(parents=True, exist_ok=True)
+            (store.path / "frames").mkdir(exist_ok=True)
+            (store.path / "prompts").mkdir(exist_ok=True)
+        except OSError as e:
+            raise RunDirError(f"cannot create run directory {store.path}: {e.strerror}") from None
+        store._lock()
+        if not existing.exists():
+            _atomic_write(existing, config.model_dump_json(indent=2).encode())
+        store._repair_tail()
+        store._fd = os.open(store.path / ATTEMPTS, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        store._prompts = {p.stem for p in (store.path / "prompts").glob("*.json")}
+        return store
+
+    def _lock(self) -> None:
+        self._lock_fd = os.open(self.path / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(self._lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(self._lock_fd)
+            self._lock_fd = None
+            raise RunDirError(f"{self.path} is in use by another deepphy run") from None
+
+    def _repair_tail(self) -> None:
+        """Drop a torn last line left by a run killed in the middle of a write."""
+        log = self.path / ATTEMPTS
+        if not log.exists():
+            return
+        data = log.read_bytes()
+        if data and not data.endswith(b"\n"):
+            with open(log, "r+b") as f:
+                f.truncate(data.rfind(b"\n") + 1)
+
+    def close(self) -> None:
+        for fd in (self._fd, self._lock_fd):
+            if fd is not None:
+                os.close(fd)
+        self._fd = self._lock_fd = None
+
+    def __enter__(self) -> "RunStore":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- writing ----------------------------------------------------------------------
+
+    def append(self, record: AttemptRecord) -> None:
+        assert self._fd is not None, "store not open for writing"
+        line = (record.model_dump_json() + "\n").encode()
+        written = os.write(self._fd, line)
+        if written != len(line):  # never seen on a local disk; fail loudly rather than tear
+            raise OSError(f"short write to {ATTEMPTS}: {written} of {len(line)} bytes")
+
+    def write_frame(self, task: str, run: int, attempt: int, name: str, png: bytes) -> str:
+        rel = f"frames/{task}/r{run}_a{attempt}_{name}.png"
+        target = self.path / rel
+        target.parent.mkdir(parents=True, exist_ok=True)
+        _atomic_write(target, png)
+        return rel
+
+    def write_prompt(self, digest: str, text: str) -> None:
+        if digest not in self._prompts:
+            _atomic_write(self.path / "prompts" / f"{digest}.json", text.encode())
+            self._prompts.add(digest)
+
+    def read_frame(self, rel: str) -> bytes:
+        return (self.path / rel).read_bytes()
+
+
+# -- reading (no lock needed: the log only grows by whole lines) ---------------------
+
+
+def read_config(path: str | Path) -> RunConfig:
+    path = Path(path)
+    if not path.is_dir():
+        raise RunDirError(f"{path} is not a run directory (it does not exist)")
+    try:
+        return RunConfig.model_validate_json((path / CONFIG).read_bytes())
+    except FileNotFoundError:
+        raise RunDirError(f"{path} is not a run directory (no {CONFIG})") from None
+    except PermissionError:
+        raise RunDirError(f"cannot read {path / CONFIG}: permission denied") from None
+    except ValidationError as e:
+        raise RunDirError(f"{path / CONFIG} is not a valid run config: {e.errors()[0]['msg']}") from None
+
+
+def read_records(path: str | Path) -> list[AttemptRecord]:
+    """All complete records, in the order they were written. A torn last line is ignored."""
+    log = Path(path) / ATTEMPTS
+    try:
+        data = log.read_bytes()
+    except FileNotFoundError:
+        return []
+    except PermissionError:
+        raise RunDirError(f"cannot read {log}: permission denied") from None
+    records = []
+    lines = data.split(b"\n")
+    complete = lines[:-1]  # the part after the last newline is empty or torn
+    for n, line in enumerate(complete, 1):
+        if not line.strip():
+            continue
+        try:
+            records.append(AttemptRecord.model_validate_json(line))
+        except ValidationError:
+            raise RunDirError(f"{log}:{n} is not a valid attempt record") from None
+    return records
+
+
+def _atomic_write(target: Path, data: bytes) -> None:
+    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, target)
+
+
+def _diff(old: dict, new: dict) -> str:
+    keys = sorted(k for k in old.keys() | new.keys() if old.get(k) != new.get(k))
+    return ", ".join(f"{k}: {json.dumps(old.get(k))} -> {json.dumps(new.get(k))}" for k in keys)
