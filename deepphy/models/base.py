@@ -52,10 +52,28 @@ class ModelResponse(BaseModel):
     text: str
     usage: Usage = Field(default_factory=Usage)
     retries: int = 0  # transport retries it took (429, 5xx, timeouts)
+    images_dropped: int = 0  # oldest images left out to meet the provider's per-request image limit
 
 
 class ModelError(RuntimeError):
-    """The provider could not answer (after retries). Not a wrong answer: the attempt is re-queued."""
+    """The provider could not answer (after retries). Not a wrong answer: the attempt is re-queued.
+
+    `retries` counts the transport retries spent before giving up and `kind` names the last
+    failure (e.g. "http_429", "http_500", "timeout", "connection", "malformed", "empty",
+    "http_401"), so the scheduler can count them. The message never carries a key.
+    """
+
+    def __init__(self, message: str = "", *, retries: int = 0, kind: str = "") -> None:
+        super().__init__(message)
+        self.retries = retries
+        self.kind = kind
+
+    def __reduce__(self):  # keep retries/kind when the error crosses Ray (pickled)
+        return (_rebuild_model_error, (type(self), str(self), self.retries, self.kind))
+
+
+def _rebuild_model_error(cls: type, message: str, retries: int, kind: str) -> "ModelError":
+    return cls(message, retries=retries, kind=kind)
 
 
 class ModelClient(ABC):

@@ -1,0 +1,191 @@
+"""Model configuration: a pydantic-validated YAML file of named model endpoints.
+
+A models file holds no secrets: each entry names the ENVIRONMENT VARIABLE that holds its
+key (`api_key_env`), and the key is read from the environment when a client is built.
+
+Defaults live in exactly one place: the field defaults below, plus `PROVIDER_DEFAULTS`
+for what depends on the provider (base URL, images per request). An entry in a models
+file states only what differs; `ModelConfig.resolved()` fills the rest.
+
+File shape::
+
+    models:
+      - name: gpt-4o                 # what `deepphy run --model` names
+        provider: openai             # openai | anthropic | gemini
+        model: gpt-4o-2024-08-06     # the provider's model id
+        api_key_env: OPENAI_API_KEY  # the NAME of the variable, never the key
+        rate_limits: {requests_per_min: 500, tokens_per_min: 300000, max_concurrent: 64}
+        price: {input_per_mtok: 2.5, output_per_mtok: 10.0}
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import os
+from enum import Enum
+from pathlib import Path
+from typing import Any, Literal
+from urllib.parse import urlparse
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+DEFAULT_MODELS_FILE = Path(__file__).with_name("models.yaml")
+MODELS_FILE_ENV = "DEEPPHY_MODELS_FILE"  # used when no file is given explicitly
+
+
+class Provider(str, Enum):
+    OPENAI = "openai"  # Chat Completions: OpenAI, vLLM, SGLang, any compatible endpoint
+    ANTHROPIC = "anthropic"  # Messages API
+    GEMINI = "gemini"  # Gemini API generateContent
+
+
+# What depends on the provider. Base URLs include the API version; the client appends
+# /chat/completions (OpenAI), /messages (Anthropic), /models/<id>:generateContent (Gemini). `max_images` is the per-request image cap we apply by
+# default: Anthropic documents 100 images per API request; OpenAI-compatible servers
+# vary widely (vLLM's limit_mm_per_prompt is set per deployment), so 50 is a cautious
+# default to override per model; Gemini accepts thousands.
+PROVIDER_DEFAULTS: dict[Provider, dict[str, Any]] = {
+    Provider.OPENAI: {"base_url": "https://api.openai.com/v1", "max_images": 50},
+    Provider.ANTHROPIC: {"base_url": "https://api.anthropic.com/v1", "max_images": 100},
+    Provider.GEMINI: {"base_url": "https://generativelanguage.googleapis.com/v1beta", "max_images": 3000},
+}
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class RateLimits(_Strict):
+    """Limits of one endpoint, enforced together by one limiter shared by all workers."""
+
+    requests_per_min: float | None = Field(None, gt=0)
+    tokens_per_min: int | None = Field(None, gt=0, description="estimated input + max_tokens, corrected by actual usage")
+    max_concurrent: int | None = Field(None, ge=1)
+    window_margin_s: float = Field(
+        1.0,
+        ge=0,
+        description="the 60 s window is widened by this much, so jitter between the limiter's grant "
+        "and the provider's arrival cannot put more than the limit in any 60 s window",
+    )
+    burst: int = Field(1, ge=1, description="requests that may go at once after an idle period (pacing)")
+    key: str | None = Field(None, description="limiter key; entries sharing an endpoint/account share a key")
+
+    @property
+    def enabled(self) -> bool:
+        return any(v is not None for v in (self.requests_per_min, self.tokens_per_min, self.max_concurrent))
+
+
+class Timeouts(_Strict):
+    connect_s: float = Field(10.0, gt=0)
+    request_s: float = Field(120.0, gt=0, description="one HTTP try, from send to the full response")
+
+
+class RetryPolicy(_Strict):
+    """Exponential backoff with jitter on 429, 408, 5xx, timeouts, connection errors and
+    unusable 200s (malformed JSON, no choices). Bounded by `max_retries`."""
+
+    max_retries: int = Field(5, ge=0)
+    base_delay_s: float = Field(1.0, ge=0)
+    max_delay_s: float = Field(60.0, ge=0)
+    max_retry_after_s: float = Field(120.0, ge=0, description="a longer Retry-After is cut to this")
+
+
+class Pricing(_Strict):
+    input_per_mtok: float = Field(0.0, ge=0, description="USD per 1M input tokens")
+    output_per_mtok: float = Field(0.0, ge=0, description="USD per 1M output tokens")
+
+    def cost(self, input_tokens: int, output_tokens: int) -> float:
+        return (input_tokens * self.input_per_mtok + output_tokens * self.output_per_mtok) / 1e6
+
+
+class ModelConfig(_Strict):
+    name: str = Field(pattern=r"^[A-Za-z0-9._:+-]+$")
+    provider: Provider
+    model: str = Field(description="the provider's model id")
+    base_url: str | None = Field(None, description="default: the provider's public endpoint")
+    api_key_env: str | None = Field(None, pattern=r"^[A-Za-z_][A-Za-z0-9_]*$", description="NAME of the env var with the key")
+    rate_limits: RateLimits = RateLimits()
+    timeouts: Timeouts = Timeouts()
+    retry: RetryPolicy = RetryPolicy()
+    price: Pricing = Pricing()
+    max_images: int | None = Field(None, ge=0, description="images per request; default: the provider's")
+    max_tokens: int | None = Field(None, ge=1, description="overrides the run's max_tokens (reasoning models need more)")
+    send_temperature: bool = True  # some reasoning models reject temperature
+    send_seed: bool = True  # OpenAI-compatible and Gemini take a seed; Anthropic has none
+    max_tokens_param: Literal["max_tokens", "max_completion_tokens"] = "max_tokens"  # OpenAI only
+    anthropic_version: str = "2023-06-01"
+    extra_body: dict[str, Any] = Field(default_factory=dict, description="merged into every request body")
+    send_context: bool = Field(
+        False,
+        description="send the RequestContext in an X-Deepphy-Context header, for the local MOCK "
+        "server only (refused unless base_url is a loopback address)",
+    )
+
+    @model_validator(mode="after")
+    def _context_only_to_loopback(self) -> "ModelConfig":
+        if self.send_context and not is_loopback_url(self.resolved_base_url):
+            raise ValueError(f"{self.name}: send_context is only allowed for a loopback base_url")
+        return self
+
+    @property
+    def resolved_base_url(self) -> str:
+        return (self.base_url or PROVIDER_DEFAULTS[self.provider]["base_url"]).rstrip("/")
+
+    @property
+    def resolved_max_images(self) -> int:
+        return self.max_images if self.max_images is not None else PROVIDER_DEFAULTS[self.provider]["max_images"]
+
+    @property
+    def limiter_key(self) -> str:
+        return self.rate_limits.key or self.name
+
+    def api_key(self) -> str | None:
+        """The key from the environment (None when the entry needs none). Raises if unset."""
+        if self.api_key_env is None:
+            return None
+        value = os.environ.get(self.api_key_env)
+        if not value:
+            raise MissingKey(f"model {self.name!r}: environment variable {self.api_key_env} is not set")
+        return value
+
+
+class MissingKey(RuntimeError):
+    pass
+
+
+class ModelsFile(_Strict):
+    models: list[ModelConfig]
+
+    @model_validator(mode="after")
+    def _unique(self) -> "ModelsFile":
+        names = [m.name for m in self.models]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"duplicate model names: {', '.join(dup)}")
+        if "mock" in names:
+            raise ValueError("'mock' is built in and cannot be redefined")
+        return self
+
+
+def is_loopback_url(url: str) -> bool:
+    host = urlparse(url).hostname or ""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def models_file_path(models_file: str | Path | None = None) -> Path:
+    if models_file is not None:
+        return Path(models_file)
+    return Path(os.environ.get(MODELS_FILE_ENV) or DEFAULT_MODELS_FILE)
+
+
+def load_models(models_file: str | Path | None = None) -> dict[str, ModelConfig]:
+    """name -> config, from `models_file` (default: $DEEPPHY_MODELS_FILE, else the shipped file)."""
+    path = models_file_path(models_file)
+    data = yaml.safe_load(path.read_text()) or {}
+    return {m.name: m for m in ModelsFile.model_validate(data).models}

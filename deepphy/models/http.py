@@ -1,0 +1,221 @@
+"""The HTTP client shared by all providers: limiter, retries, usage and cost, secrecy.
+
+A provider subclass says only how to build its request and read its response
+(deepphy/models/providers.py). Everything else is here:
+- one aiohttp session per event loop; the connection pool is sized by max_concurrent
+  (unbounded when no limit is set);
+- every HTTP try takes a grant from the endpoint's limiter (shared Ray actor inside a Ray
+  cluster, in-process otherwise) and returns it with the tokens actually used;
+- retries with exponential backoff and jitter on 429, 408, 409, 5xx, timeouts,
+  connection errors and unusable 200s (malformed JSON, no choices); `Retry-After` /
+  `retry-after-ms` is honoured (capped at max_retry_after_s); at most max_retries; then
+  `ModelError(retries=..., kind=...)`. Other 4xx fail at once;
+- the key is read from the environment, held as a SecretStr, never pickled, never in
+  repr, and scrubbed from every error text.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import random
+from typing import Any
+
+import aiohttp
+from pydantic import SecretStr
+
+from deepphy.models.base import ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext, Usage
+from deepphy.models.config import ModelConfig
+from deepphy.models.limiter import Limiter, LocalLimiter
+from deepphy.models.wire import CONTEXT_HEADER, encode_context, estimate_input_tokens, limit_images, parse_retry_after
+from deepphy.prompts.base import Message
+
+RETRYABLE_STATUS = {408, 409, 429}  # plus every 5xx (Anthropic's 529 "overloaded" included)
+
+
+class EmptyReply(ValueError):
+    """A 200 response with no answer in it (no choices / candidates / content)."""
+
+
+class _Failure(Exception):
+    def __init__(self, kind: str, message: str, retryable: bool, retry_after: float | None = None) -> None:
+        super().__init__(message)
+        self.kind, self.message, self.retryable, self.retry_after = kind, message, retryable, retry_after
+
+
+def request_seed(ctx: RequestContext) -> int:
+    """A per-request seed for providers that take one: stable for a (seed, task, run, attempt, step)."""
+    from deepphy.envs import seeded_rng
+
+    return int(seeded_rng("request-seed", ctx.seed, ctx.env, ctx.task_id, ctx.run, ctx.attempt, ctx.step).integers(2**31 - 1))
+
+
+class HTTPModelClient(ModelClient):
+    """Base of the provider clients. `limiter`: "auto" (Ray actor when Ray is running,
+    else in-process; none when the config sets no limits), None, or a `Limiter`."""
+
+    def __init__(self, config: ModelConfig, limiter: Limiter | str | None = "auto") -> None:
+        self.config = config
+        self.name = config.name
+        key = config.api_key()
+        self._key = SecretStr(key) if key else None
+        self._limiter_arg = limiter
+        self._limiter: Limiter | None = None
+        self._limiter_ready = False
+        self._session: aiohttp.ClientSession | None = None
+        self._session_loop: asyncio.AbstractEventLoop | None = None
+        self._rng = random.Random()
+
+    # --- what a provider supplies -------------------------------------------------------
+
+    def url(self) -> str:
+        raise NotImplementedError
+
+    def auth_headers(self, key: str) -> dict[str, str]:
+        raise NotImplementedError
+
+    def static_headers(self) -> dict[str, str]:
+        return {}
+
+    def build_body(self, request: ModelRequest, messages: list[Message], max_tokens: int) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def parse(self, data: Any) -> tuple[str, int | None, int | None]:
+        """(text, input tokens, output tokens); raises EmptyReply, or KeyError/TypeError if malformed."""
+        raise NotImplementedError
+
+    # --- secrecy --------------------------------------------------------------------------
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(name={self.name!r}, model={self.config.model!r}, base_url={self.config.resolved_base_url!r})"
+
+    __str__ = __repr__
+
+    def __reduce__(self):
+        # Never pickle the key (Ray would copy it into the object store): the receiving
+        # process reads it from its own environment.
+        return (type(self), (self.config, self._limiter_arg if isinstance(self._limiter_arg, (str, type(None))) else "auto"))
+
+    def _redact(self, text: str) -> str:
+        if self._key is not None:
+            secret = self._key.get_secret_value()
+            if secret:
+                text = text.replace(secret, "***")
+        return text
+
+    # --- plumbing -------------------------------------------------------------------------
+
+    def _get_limiter(self) -> Limiter | None:
+        if not self._limiter_ready:
+            arg = self._limiter_arg
+            if arg == "auto":
+                if not self.config.rate_limits.enabled:
+                    self._limiter = None
+                else:
+                    import ray
+
+                    if ray.is_initialized():
+                        from deepphy.actors.rate_limiter import RayLimiter
+
+                        self._limiter = RayLimiter(self.config)
+                    else:
+                        self._limiter = LocalLimiter(self.config.rate_limits)
+            elif isinstance(arg, str):
+                raise ValueError(f"limiter must be 'auto', None or a Limiter, got {arg!r}")
+            else:
+                self._limiter = arg
+            self._limiter_ready = True
+        return self._limiter
+
+    def _get_session(self) -> aiohttp.ClientSession:
+        loop = asyncio.get_running_loop()
+        if self._session is None or self._session.closed or self._session_loop is not loop:
+            t = self.config.timeouts
+            self._session = aiohttp.ClientSession(
+                connector=aiohttp.TCPConnector(limit=self.config.rate_limits.max_concurrent or 0),
+                timeout=aiohttp.ClientTimeout(total=t.request_s, sock_connect=t.connect_s),
+            )
+            self._session_loop = loop
+        return self._session
+
+    async def close(self) -> None:
+        if self._session is not None and not self._session.closed and self._session_loop is asyncio.get_running_loop():
+            await self._session.close()
+        self._session = None
+
+    def _delay(self, retry: int, retry_after: float | None) -> float:
+        p = self.config.retry
+        if retry_after is not None:
+            return min(retry_after, p.max_retry_after_s) * (1 + 0.1 * self._rng.random())
+        cap = min(p.max_delay_s, p.base_delay_s * 2**retry)
+        return cap * (0.5 + 0.5 * self._rng.random())
+
+    async def _try(self, session: aiohttp.ClientSession, url: str, payload: bytes, headers: dict[str, str]):
+        t = self.config.timeouts
+        try:
+            async with session.post(url, data=payload, headers=headers) as resp:
+                raw = await resp.read()
+                status, rheaders = resp.status, resp.headers
+        except TimeoutError:
+            raise _Failure("timeout", f"no complete response within {t.request_s:g} s", True) from None
+        except aiohttp.ClientError as e:
+            raise _Failure("connection", f"connection error: {type(e).__name__}: {self._redact(str(e))[:200]}", True) from None
+        if status != 200:
+            retryable = status in RETRYABLE_STATUS or status >= 500
+            snippet = self._redact(raw[:300].decode("utf-8", "replace")).replace("\n", " ")
+            raise _Failure(f"http_{status}", f"HTTP {status}: {snippet}", retryable, parse_retry_after(rheaders))
+        try:
+            data = json.loads(raw)
+        except ValueError:
+            raise _Failure("malformed", "response body is not valid JSON", True) from None
+        try:
+            return self.parse(data)
+        except EmptyReply as e:
+            raise _Failure("empty", f"empty reply: {self._redact(str(e))}", True) from None
+        except (KeyError, TypeError, IndexError, AttributeError):
+            raise _Failure("malformed", "response JSON lacks the expected fields", True) from None
+
+    # --- the call -------------------------------------------------------------------------
+
+    async def complete(self, request: ModelRequest) -> ModelResponse:
+        cfg = self.config
+        messages, dropped = limit_images(request.messages, cfg.resolved_max_images)
+        max_tokens = cfg.max_tokens or request.max_tokens
+        body = {**self.build_body(request, messages, max_tokens), **cfg.extra_body}
+        payload = json.dumps(body).encode()
+        headers = {"Content-Type": "application/json", **self.static_headers()}
+        if cfg.send_context:
+            headers[CONTEXT_HEADER] = encode_context(request.context)
+        if self._key is not None:
+            headers.update(self.auth_headers(self._key.get_secret_value()))
+        estimate_in = estimate_input_tokens(messages)
+        limiter = self._get_limiter()
+        lease_s = cfg.timeouts.request_s + cfg.timeouts.connect_s + 30.0
+        session = self._get_session()
+        url = self.url()
+        retries = 0
+        while True:
+            grant = await limiter.acquire(estimate_in + max_tokens, lease_s) if limiter is not None else None
+            used = estimate_in + max_tokens
+            try:
+                text, tin, tout = await self._try(session, url, payload, headers)
+                tin = tin if tin is not None else estimate_in
+                tout = tout if tout is not None else 0
+                used = tin + tout
+            except _Failure as f:
+                if not f.retryable or retries >= cfg.retry.max_retries:
+                    note = f" (after {retries} retries)" if retries else ""
+                    raise ModelError(f"{self.name}: {f.message}{note}", retries=retries, kind=f.kind) from None
+                delay = self._delay(retries, f.retry_after)
+            else:
+                return ModelResponse(
+                    text=text,
+                    usage=Usage(input_tokens=tin, output_tokens=tout, cost_usd=cfg.price.cost(tin, tout)),
+                    retries=retries,
+                    images_dropped=dropped,
+                )
+            finally:
+                if grant is not None:
+                    await limiter.release(grant, used)
+            retries += 1
+            await asyncio.sleep(delay)

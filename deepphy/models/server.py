@@ -1,0 +1,577 @@
+"""A local model server with real provider wire formats that answers with the MOCK policy.
+
+    python -m deepphy.models.server --port 8765 [--latency 0.5] [--fault-rate 0.2] [--seed 0]
+
+Routes (real request/response JSON, status codes and headers):
+- POST /v1/chat/completions                    OpenAI Chat Completions (no streaming)
+- POST /v1/messages                            Anthropic Messages
+- POST /v1beta/models/{model}:generateContent  Gemini
+- GET  /stats                                  arrival times and counters (?arrivals=0 to omit times)
+- GET  /admin/bodies                           the last --record-bodies request bodies (for tests)
+- POST /admin/config                           change latency / faults at run time (JSON, partial)
+- POST /admin/reset                            clear arrivals, counters and fault history
+- GET  /health
+
+The answer: the server needs the request's RequestContext, which is NOT in the messages
+(a real provider must see exactly the prompt). Clients whose model config sets
+`send_context: true` (allowed only for loopback base URLs) send it in the
+`X-Deepphy-Context` header (base64url of zlib'd JSON, see deepphy.models.wire); the
+server answers `mock_reply(ctx.format, mock_action_text(ctx))`, which is byte for byte
+what `deepphy.models.mock.MockModel` returns for the same request. Without the header it
+answers 400.
+
+Faults (at `--fault-rate`, kinds from `--faults`): `429` (with Retry-After), `500`,
+`hang` (no answer for --hang seconds, past any sane client timeout), `malformed` (200
+with truncated JSON), `empty` (200 with no choices / content / candidates), `prose` (200
+with a reply that contains no action). Whether a request is faulted, and how, depends
+only on the seed, the request (body + context header) and how many times that same
+request arrived before, so a run's faults do not depend on timing or arrival order; a
+retry of a request draws again.
+
+Every request's arrival time (time.time() at the server) is kept for GET /stats and,
+with --log, appended as a JSON line to a file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import base64
+import hashlib
+import json
+import os
+import secrets
+import sys
+import threading
+import time
+from collections import Counter, deque
+from typing import Any
+
+from aiohttp import web
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from deepphy.models.wire import CONTEXT_HEADER, decode_context, image_tokens, text_tokens
+
+FAULT_KINDS = ("429", "500", "hang", "malformed", "empty", "prose")
+PROSE_REPLY = (
+    "Looking at the scene, the balls rest on the gray supports and gravity will pull them down "
+    "once the supports are gone. I would want to think carefully about the timing of each "
+    "removal before committing to anything."
+)
+
+
+class Faults(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    rate: float = Field(0.0, ge=0, le=1)
+    kinds: list[str] = Field(default_factory=lambda: list(FAULT_KINDS))
+    retry_after_s: float = Field(1.0, ge=0)
+    hang_s: float = Field(3600.0, ge=0)
+
+    @field_validator("kinds")
+    @classmethod
+    def _known(cls, v: list[str]) -> list[str]:
+        bad = [k for k in v if k not in FAULT_KINDS]
+        if bad or not v:
+            raise ValueError(f"fault kinds must be a non-empty subset of {FAULT_KINDS}, got {v}")
+        return v
+
+
+class ServerConfig(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    latency_s: float = Field(0.0, ge=0)
+    latency_jitter_s: float = Field(0.0, ge=0)
+    seed: int = 0
+    faults: Faults = Faults()
+    require_key_env: str | None = None  # when set, requests must carry this env var's key
+    record_bodies: int = Field(0, ge=0)
+    log_path: str | None = None
+
+
+def _rng(*keys: Any):
+    from deepphy.envs import seeded_rng
+
+    return seeded_rng("model-server", *keys)
+
+
+def _b64_png_tokens(data: str) -> int:
+    try:
+        head = base64.b64decode(data[:44])
+    except ValueError:
+        return 258
+    return image_tokens(head + b"\0" * 24)
+
+
+class BadRequest(Exception):
+    pass
+
+
+# --- the three wire formats --------------------------------------------------------------
+
+
+class OpenAIFormat:
+    name = "openai"
+
+    @staticmethod
+    def validate(body: Any, request: web.Request) -> None:
+        if not isinstance(body, dict) or not isinstance(body.get("model"), str):
+            raise BadRequest("'model' is required")
+        msgs = body.get("messages")
+        if not isinstance(msgs, list) or not msgs:
+            raise BadRequest("'messages' must be a non-empty array")
+        for m in msgs:
+            if not isinstance(m, dict) or m.get("role") not in ("system", "developer", "user", "assistant", "tool"):
+                raise BadRequest("each message needs a valid 'role'")
+            c = m.get("content")
+            if isinstance(c, list):
+                for p in c:
+                    if not isinstance(p, dict) or p.get("type") not in ("text", "image_url"):
+                        raise BadRequest("content parts must be of type text or image_url")
+                    if p["type"] == "image_url" and not str((p.get("image_url") or {}).get("url", "")).startswith(
+                        ("data:image/", "http")
+                    ):
+                        raise BadRequest("image_url.url must be a data URL or http(s) URL")
+            elif not isinstance(c, str):
+                raise BadRequest("'content' must be a string or an array of parts")
+        if body.get("stream"):
+            raise BadRequest("streaming is not supported by this server")
+        t = body.get("temperature")
+        if t is not None and not (isinstance(t, (int, float)) and 0 <= t <= 2):
+            raise BadRequest("'temperature' must be between 0 and 2")
+
+    @staticmethod
+    def prompt_tokens(body: dict) -> int:
+        n = 0
+        for m in body["messages"]:
+            c = m.get("content")
+            if isinstance(c, str):
+                n += text_tokens(c)
+            else:
+                for p in c:
+                    if p["type"] == "text":
+                        n += text_tokens(p.get("text", ""))
+                    else:
+                        n += _b64_png_tokens(p["image_url"]["url"].partition(",")[2])
+        return n
+
+    @staticmethod
+    def reply(body: dict, text: str | None, tin: int, tout: int) -> dict:
+        choices = (
+            []
+            if text is None
+            else [{"index": 0, "message": {"role": "assistant", "content": text}, "finish_reason": "stop", "logprobs": None}]
+        )
+        return {
+            "id": "chatcmpl-" + secrets.token_hex(12),
+            "object": "chat.completion",
+            "created": int(time.time()),
+            "model": body.get("model", ""),
+            "choices": choices,
+            "usage": {"prompt_tokens": tin, "completion_tokens": tout, "total_tokens": tin + tout},
+        }
+
+    @staticmethod
+    def error(status: int, message: str) -> dict:
+        kind = {400: "invalid_request_error", 401: "invalid_request_error", 429: "rate_limit_exceeded"}.get(status, "server_error")
+        return {"error": {"message": message, "type": kind, "param": None, "code": None}}
+
+    @staticmethod
+    def key(request: web.Request) -> str | None:
+        auth = request.headers.get("Authorization", "")
+        return auth[7:] if auth.startswith("Bearer ") else None
+
+
+class AnthropicFormat:
+    name = "anthropic"
+
+    @staticmethod
+    def validate(body: Any, request: web.Request) -> None:
+        if not request.headers.get("anthropic-version"):
+            raise BadRequest("anthropic-version header is required")
+        if not isinstance(body, dict) or not isinstance(body.get("model"), str):
+            raise BadRequest("model: Field required")
+        if not isinstance(body.get("max_tokens"), int) or body["max_tokens"] < 1:
+            raise BadRequest("max_tokens: Field required")
+        msgs = body.get("messages")
+        if not isinstance(msgs, list) or not msgs:
+            raise BadRequest("messages: Field required")
+        for m in msgs:
+            if not isinstance(m, dict) or m.get("role") not in ("user", "assistant"):
+                raise BadRequest("messages: roles must be 'user' or 'assistant' (system is a top-level field)")
+            c = m.get("content")
+            if isinstance(c, list):
+                for b in c:
+                    if not isinstance(b, dict) or b.get("type") not in ("text", "image"):
+                        raise BadRequest("content blocks must be of type text or image")
+                    if b["type"] == "image":
+                        src = b.get("source") or {}
+                        if src.get("type") != "base64" or src.get("media_type") not in (
+                            "image/png", "image/jpeg", "image/gif", "image/webp"
+                        ) or not isinstance(src.get("data"), str):
+                            raise BadRequest("image source must be {type: base64, media_type, data}")
+            elif not isinstance(c, str):
+                raise BadRequest("content must be a string or an array of blocks")
+        t = body.get("temperature")
+        if t is not None and not (isinstance(t, (int, float)) and 0 <= t <= 1):
+            raise BadRequest("temperature must be between 0 and 1")
+
+    @staticmethod
+    def prompt_tokens(body: dict) -> int:
+        n = text_tokens(body["system"]) if isinstance(body.get("system"), str) else 0
+        for m in body["messages"]:
+            c = m["content"]
+            if isinstance(c, str):
+                n += text_tokens(c)
+            else:
+                for b in c:
+                    n += text_tokens(b.get("text", "")) if b["type"] == "text" else _b64_png_tokens(b["source"]["data"])
+        return n
+
+    @staticmethod
+    def reply(body: dict, text: str | None, tin: int, tout: int) -> dict:
+        return {
+            "id": "msg_" + secrets.token_hex(12),
+            "type": "message",
+            "role": "assistant",
+            "model": body.get("model", ""),
+            "content": [] if text is None else [{"type": "text", "text": text}],
+            "stop_reason": "end_turn",
+            "stop_sequence": None,
+            "usage": {"input_tokens": tin, "output_tokens": tout},
+        }
+
+    @staticmethod
+    def error(status: int, message: str) -> dict:
+        kind = {400: "invalid_request_error", 401: "authentication_error", 429: "rate_limit_error"}.get(status, "api_error")
+        return {"type": "error", "error": {"type": kind, "message": message}}
+
+    @staticmethod
+    def key(request: web.Request) -> str | None:
+        return request.headers.get("x-api-key")
+
+
+class GeminiFormat:
+    name = "gemini"
+
+    @staticmethod
+    def validate(body: Any, request: web.Request) -> None:
+        if not request.match_info.get("model", "").endswith(":generateContent"):
+            raise BadRequest("only models/{model}:generateContent is served")
+        if not isinstance(body, dict) or not isinstance(body.get("contents"), list) or not body["contents"]:
+            raise BadRequest("contents is required")
+        for c in body["contents"]:
+            if not isinstance(c, dict) or c.get("role") not in ("user", "model") or not isinstance(c.get("parts"), list):
+                raise BadRequest("each content needs role user|model and parts")
+            for p in c["parts"]:
+                if not isinstance(p, dict) or not ("text" in p or "inlineData" in p):
+                    raise BadRequest("parts must carry text or inlineData")
+                if "inlineData" in p:
+                    d = p["inlineData"]
+                    if not isinstance(d, dict) or not str(d.get("mimeType", "")).startswith("image/") or not isinstance(d.get("data"), str):
+                        raise BadRequest("inlineData needs mimeType and base64 data")
+
+    @staticmethod
+    def prompt_tokens(body: dict) -> int:
+        n = sum(text_tokens(p.get("text", "")) for p in (body.get("systemInstruction") or {}).get("parts", []))
+        for c in body["contents"]:
+            for p in c["parts"]:
+                n += text_tokens(p["text"]) if "text" in p else _b64_png_tokens(p["inlineData"]["data"])
+        return n
+
+    @staticmethod
+    def reply(body: dict, text: str | None, tin: int, tout: int) -> dict:
+        candidates = (
+            []
+            if text is None
+            else [{"content": {"role": "model", "parts": [{"text": text}]}, "finishReason": "STOP", "index": 0}]
+        )
+        return {
+            "candidates": candidates,
+            "usageMetadata": {"promptTokenCount": tin, "candidatesTokenCount": tout, "totalTokenCount": tin + tout},
+            "modelVersion": "deepphy-mock",
+        }
+
+    @staticmethod
+    def error(status: int, message: str) -> dict:
+        kind = {400: "INVALID_ARGUMENT", 401: "UNAUTHENTICATED", 429: "RESOURCE_EXHAUSTED"}.get(status, "INTERNAL")
+        return {"error": {"code": status, "message": message, "status": kind}}
+
+    @staticmethod
+    def key(request: web.Request) -> str | None:
+        return request.headers.get("x-goog-api-key")
+
+
+# --- the server ------------------------------------------------------------------------------
+
+
+class MockServer:
+    def __init__(self, config: ServerConfig | None = None) -> None:
+        self.config = config or ServerConfig()
+        self._runner: web.AppRunner | None = None
+        self.port: int | None = None
+        self._reset()
+        app = web.Application(client_max_size=256 * 1024**2)
+        for path, fmt in (
+            ("/v1/chat/completions", OpenAIFormat),
+            ("/chat/completions", OpenAIFormat),
+            ("/v1/messages", AnthropicFormat),
+            ("/v1beta/models/{model}", GeminiFormat),
+            ("/v1/models/{model}", GeminiFormat),
+        ):
+            app.router.add_post(path, self._handler(fmt))
+        app.router.add_get("/stats", self._stats)
+        app.router.add_get("/health", lambda r: web.json_response({"ok": True}))
+        app.router.add_get("/admin/bodies", self._bodies)
+        app.router.add_post("/admin/config", self._configure)
+        app.router.add_post("/admin/reset", self._reset_route)
+        self.app = app
+
+    def _reset(self) -> None:
+        self.arrivals: list[float] = []
+        self.seen: Counter[str] = Counter()
+        self.faults: Counter[str] = Counter()
+        self.statuses: Counter[int] = Counter()
+        self.in_flight = 0
+        self.max_in_flight = 0
+        self.bodies: deque[dict] = deque(maxlen=max(self.config.record_bodies, 1))
+
+    async def start(self, host: str = "127.0.0.1", port: int = 0) -> int:
+        self._runner = web.AppRunner(self.app, handler_cancellation=True, max_field_size=1024**2, access_log=None)
+        await self._runner.setup()
+        site = web.TCPSite(self._runner, host, port, backlog=1024)
+        await site.start()
+        self.port = site._server.sockets[0].getsockname()[1]  # type: ignore[union-attr]
+        return self.port
+
+    async def stop(self) -> None:
+        if self._runner is not None:
+            await self._runner.cleanup()
+            self._runner = None
+
+    def stats(self, arrivals: bool = True) -> dict:
+        out = {
+            "requests": len(self.arrivals),
+            "faults": dict(self.faults),
+            "status": {str(k): v for k, v in self.statuses.items()},
+            "in_flight": self.in_flight,
+            "max_in_flight": self.max_in_flight,
+        }
+        if arrivals:
+            out["arrivals"] = list(self.arrivals)
+        return out
+
+    async def _stats(self, request: web.Request) -> web.Response:
+        return web.json_response(self.stats(request.query.get("arrivals", "1") != "0"))
+
+    async def _bodies(self, request: web.Request) -> web.Response:
+        return web.json_response(list(self.bodies))
+
+    async def _configure(self, request: web.Request) -> web.Response:
+        patch = await request.json()
+        merged = self.config.model_dump()
+        for k, v in patch.items():
+            merged[k] = {**merged[k], **v} if isinstance(v, dict) and isinstance(merged.get(k), dict) else v
+        try:
+            self.config = ServerConfig.model_validate(merged)
+        except ValueError as e:
+            return web.json_response({"error": str(e)}, status=400)
+        return web.json_response(self.config.model_dump())
+
+    async def _reset_route(self, request: web.Request) -> web.Response:
+        self._reset()
+        return web.json_response({"ok": True})
+
+    def _handler(self, fmt):
+        async def handle(request: web.Request) -> web.StreamResponse:
+            arrived = time.time()
+            self.arrivals.append(arrived)
+            self.in_flight += 1
+            self.max_in_flight = max(self.max_in_flight, self.in_flight)
+            fault = None
+            status = 0
+            try:
+                resp, fault = await self._answer(fmt, request)
+                status = resp.status
+                return resp
+            finally:
+                self.in_flight -= 1
+                self.statuses[status] += 1  # 0: the client went away first (e.g. a hang)
+                if fault:
+                    self.faults[fault] += 1
+                if self.config.log_path:
+                    with open(self.config.log_path, "a") as f:
+                        f.write(json.dumps({"t": arrived, "api": fmt.name, "fault": fault, "status": status}) + "\n")
+
+        return handle
+
+    async def _answer(self, fmt, request: web.Request) -> tuple[web.StreamResponse, str | None]:
+        cfg = self.config
+        raw = await request.read()
+        ctx_header = request.headers.get(CONTEXT_HEADER, "")
+        digest = hashlib.sha256(raw + b"\0" + ctx_header.encode() + request.path.encode()).hexdigest()
+        nth = self.seen[digest]
+        self.seen[digest] += 1
+        rng = _rng(cfg.seed, digest, nth)
+        fault = None
+        if rng.random() < cfg.faults.rate:
+            fault = cfg.faults.kinds[int(rng.integers(len(cfg.faults.kinds)))]
+        delay = cfg.latency_s + (rng.random() * cfg.latency_jitter_s if cfg.latency_jitter_s else 0.0)
+        if cfg.record_bodies:
+            try:
+                body_json = json.loads(raw)
+            except ValueError:
+                body_json = None
+            # header names only, never their values (keys travel in headers)
+            self.bodies.append({"path": request.path, "headers": sorted(request.headers.keys()), "body": body_json})
+
+        def err(status: int, message: str, headers: dict | None = None):
+            return web.json_response(fmt.error(status, message), status=status, headers=headers)
+
+        if cfg.require_key_env:
+            expected = os.environ.get(cfg.require_key_env, "")
+            if not expected or not secrets.compare_digest(fmt.key(request) or "", expected):
+                return err(401, "invalid or missing API key"), None
+        try:
+            body = json.loads(raw)
+            fmt.validate(body, request)
+        except ValueError:
+            return err(400, "request body is not valid JSON"), None
+        except BadRequest as e:
+            return err(400, str(e)), None
+        if delay:
+            await asyncio.sleep(delay)
+        if fault == "429":
+            ra = cfg.faults.retry_after_s
+            return err(429, "rate limit exceeded (injected)", {"Retry-After": f"{ra:g}"}), fault
+        if fault == "500":
+            return err(500, "internal server error (injected)"), fault
+        if fault == "hang":
+            await asyncio.sleep(cfg.faults.hang_s)
+            return err(504, "gateway timeout (injected hang)"), fault
+        if not ctx_header:
+            return err(400, f"this server answers with the MOCK policy and needs the {CONTEXT_HEADER} header "
+                            "(set send_context: true in the model config)"), fault
+        try:
+            ctx = decode_context(ctx_header)
+        except Exception:
+            return err(400, f"bad {CONTEXT_HEADER} header"), fault
+        if fault == "malformed":
+            return web.Response(text='{"id": "x", "choices": [{"message": {"content": "', content_type="application/json"), fault
+        tin = fmt.prompt_tokens(body)
+        if fault == "empty":
+            return web.json_response(fmt.reply(body, None, tin, 0)), fault
+        if fault == "prose":
+            text = PROSE_REPLY
+        else:
+            from deepphy.models.mock import mock_action_text
+            from deepphy.prompts import mock_reply
+
+            text = mock_reply(ctx.format, mock_action_text(ctx))
+        return web.json_response(fmt.reply(body, text, tin, text_tokens(text))), fault
+
+
+# --- running it ------------------------------------------------------------------------------
+
+
+class ServerThread:
+    """A MockServer on its own event loop in a daemon thread (for tests and scripts)."""
+
+    def __init__(self, config: ServerConfig | None = None, host: str = "127.0.0.1", port: int = 0) -> None:
+        self.server = MockServer(config)
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._loop.run_forever, daemon=True, name="deepphy-model-server")
+        self._thread.start()
+        self.port = self._call(self.server.start(host, port))
+        self.host = host
+
+    def _call(self, coro, timeout: float = 30.0):
+        return asyncio.run_coroutine_threadsafe(coro, self._loop).result(timeout)
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.host}:{self.port}"
+
+    def stats(self, arrivals: bool = True) -> dict:
+        async def get():
+            return self.server.stats(arrivals)
+
+        return self._call(get())
+
+    def configure(self, **patch: Any) -> None:
+        async def set_():
+            merged = self.server.config.model_dump()
+            for k, v in patch.items():
+                merged[k] = {**merged[k], **v} if isinstance(v, dict) and isinstance(merged.get(k), dict) else v
+            self.server.config = ServerConfig.model_validate(merged)
+
+        self._call(set_())
+
+    def reset(self) -> None:
+        async def r():
+            self.server._reset()
+
+        self._call(r())
+
+    def bodies(self) -> list[dict]:
+        async def b():
+            return list(self.server.bodies)
+
+        return self._call(b())
+
+    def stop(self) -> None:
+        try:
+            self._call(self.server.stop())
+        finally:
+            self._loop.call_soon_threadsafe(self._loop.stop)
+            self._thread.join(10)
+
+    def __enter__(self) -> "ServerThread":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(prog="python -m deepphy.models.server", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--host", default="127.0.0.1")
+    ap.add_argument("--port", type=int, default=8765, help="0: any free port (printed)")
+    ap.add_argument("--latency", type=float, default=0.0, help="seconds before each answer")
+    ap.add_argument("--latency-jitter", type=float, default=0.0, help="extra uniform 0..J seconds")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--fault-rate", type=float, default=0.0)
+    ap.add_argument("--faults", default=",".join(FAULT_KINDS), help=f"comma list of {','.join(FAULT_KINDS)}")
+    ap.add_argument("--retry-after", type=float, default=1.0, help="Retry-After seconds sent with 429")
+    ap.add_argument("--hang", type=float, default=3600.0, help="seconds a 'hang' fault holds the request")
+    ap.add_argument("--require-key-env", default=None, help="require the key held in this env var")
+    ap.add_argument("--record-bodies", type=int, default=0, help="keep the last N request bodies (GET /admin/bodies)")
+    ap.add_argument("--log", default=None, help="append one JSON line per request (arrival time, fault, status)")
+    a = ap.parse_args(argv)
+    config = ServerConfig(
+        latency_s=a.latency,
+        latency_jitter_s=a.latency_jitter,
+        seed=a.seed,
+        faults=Faults(rate=a.fault_rate, kinds=[k for k in a.faults.split(",") if k], retry_after_s=a.retry_after, hang_s=a.hang),
+        require_key_env=a.require_key_env,
+        record_bodies=a.record_bodies,
+        log_path=a.log,
+    )
+
+    async def run() -> None:
+        server = MockServer(config)
+        port = await server.start(a.host, a.port)
+        print(f"deepphy model server listening on http://{a.host}:{port}", flush=True)
+        try:
+            await asyncio.Event().wait()
+        finally:
+            await server.stop()
+
+    try:
+        asyncio.run(run())
+    except KeyboardInterrupt:
+        pass
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
