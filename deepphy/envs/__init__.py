@@ -21,6 +21,7 @@ from deepphy.envs.images import Image
 # name -> "module:Class". One line per environment.
 ENVIRONMENTS: dict[str, str] = {
     "iphyre": "deepphy.envs.iphyre:IPhyreEnv",
+    "kinetix": "deepphy.envs.kinetix:KinetixEnv",
     "phyre": "deepphy.envs.phyre:PhyreEnv",
 }
 

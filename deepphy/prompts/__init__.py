@@ -20,6 +20,7 @@ from deepphy.prompts.base import (
 # env name -> "module:Class"
 PROMPTS: dict[str, str] = {
     "iphyre": "deepphy.prompts.iphyre:IPhyrePrompt",
+    "kinetix": "deepphy.prompts.kinetix:KinetixPrompt",
     "phyre": "deepphy.prompts.phyre:PhyrePrompt",
 }
 

@@ -1,0 +1,223 @@
+"""Everything that touches JAX / kinetix-env: level loading with a disk cache, one compiled
+decision function per level size, batched (vmapped) stepping.
+
+Imported lazily by the environment (importing kinetix takes seconds and pulls in its
+whole training stack).
+
+Cost control:
+- Levels: kinetix's JSON loader is slow (0.1-2 s per level). The converted level
+  (`jax.device_get(state)`, static and env params) is pickled once under
+  `<cache root>/kinetix/levels/<kinetix version>/`; later loads take milliseconds.
+- Compilation: one jitted, vmapped "decision" function (16 env steps in a `lax.scan`) per
+  level size; the three sizes have one StaticEnvParams each, and all levels share their
+  EnvParams. Batches are split into bucket sizes (64, 16, 4, 1) so that a worker compiles
+  at most four shapes per size, however many episodes wait. The persistent JAX
+  compilation cache lives under `<cache root>/kinetix/jax/` and is shared by workers.
+- Cache root: `$DEEPPHY_CACHE_DIR` or `~/.cache/deepphy`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import pickle
+import tempfile
+import threading
+from dataclasses import dataclass
+from functools import partial
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from deepphy.envs.kinetix.levels import level_path
+
+STEPS_PER_DECISION = 16
+BUCKETS = (64, 16, 4, 1)  # batch shapes compiled per size; larger batches are split greedily
+NUM_MOTOR_BINDINGS = 4
+NUM_THRUSTER_BINDINGS = 2
+
+_lock = threading.RLock()
+_configured = False
+
+
+def cache_root() -> Path:
+    root = os.environ.get("DEEPPHY_CACHE_DIR")
+    return (Path(root) if root else Path.home() / ".cache" / "deepphy") / "kinetix"
+
+
+def configure_jax() -> None:
+    """Point JAX's persistent compilation cache at the shared cache root (once per process).
+
+    A JAX_COMPILATION_CACHE_DIR set by the user wins.
+    """
+    global _configured
+    with _lock:
+        if _configured:
+            return
+        import jax
+
+        if not os.environ.get("JAX_COMPILATION_CACHE_DIR"):
+            path = cache_root() / "jax"
+            path.mkdir(parents=True, exist_ok=True)
+            jax.config.update("jax_compilation_cache_dir", str(path))
+        # Our compiles take seconds; cache everything that takes more than half a second.
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+        _configured = True
+
+
+# -- levels ---------------------------------------------------------------------------
+
+
+@dataclass
+class Level:
+    """A converted level: numpy state (the initial state) and its parameters."""
+
+    name: str  # "s/h0_weak_thrust"
+    state: Any  # kinetix EnvState of numpy arrays
+    static_params: Any
+    env_params: Any
+
+
+_levels: dict[str, Level] = {}
+
+
+def _kinetix_version() -> str:
+    try:
+        return metadata.version("kinetix-env")
+    except metadata.PackageNotFoundError:  # pragma: no cover
+        return "unknown"
+
+
+def load_level(name: str) -> Level:
+    """Level "s/h0_weak_thrust" from memory, the disk cache, or kinetix's JSON loader."""
+    with _lock:
+        if name in _levels:
+            return _levels[name]
+        src = level_path(name)
+        digest = hashlib.sha256(src.read_bytes()).hexdigest()[:12]
+        path = cache_root() / "levels" / _kinetix_version() / f"{name.replace('/', '_')}-{digest}.pkl"
+        level = None
+        if path.exists():
+            try:
+                with open(path, "rb") as f:
+                    level = pickle.load(f)
+            except Exception:  # a torn or stale file: rebuild it
+                level = None
+        if level is None:
+            level = _convert(name)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+            with os.fdopen(fd, "wb") as f:
+                pickle.dump(level, f, protocol=pickle.HIGHEST_PROTOCOL)
+            os.replace(tmp, path)  # atomic: concurrent workers never read a partial file
+        _levels[name] = level
+        return level
+
+
+def _convert(name: str) -> Level:
+    import jax
+    import jax.numpy as jnp
+    from kinetix.util.saving import load_from_json_file
+
+    state, static_params, env_params = load_from_json_file(name)
+    # Loaded levels carry weakly typed scalars; fix their dtypes or the second step recompiles.
+    state = state.replace(timestep=jnp.int32(0), last_distance=jnp.float32(-1.0))
+    return Level(name=name, state=jax.device_get(state), static_params=static_params, env_params=env_params)
+
+
+# -- compiled stepping ----------------------------------------------------------------
+
+
+@dataclass
+class DecisionOut:
+    """Result of one decision (16 env steps, stopped early at the end of the episode)."""
+
+    state: Any  # numpy EnvState after the decision
+    done: bool
+    goal: bool  # info["GoalR"] at the step that ended the episode
+    reward: float  # kinetix reward of the last step taken (+-1 at the end, dense shaping otherwise)
+    steps: int  # env steps actually taken (<= 16)
+    timestep: int  # kinetix timestep after the decision
+
+
+class Sim:
+    """The compiled decision function for one level size (one StaticEnvParams)."""
+
+    def __init__(self, static_params: Any, env_params: Any) -> None:
+        import jax
+        import jax.numpy as jnp
+        from kinetix.environment.env import make_kinetix_env
+        from kinetix.environment.spaces import ActionType, ObservationType
+
+        configure_jax()
+        self.static_params = static_params
+        self.env_params = env_params
+        self.env = make_kinetix_env(
+            ActionType.MULTI_DISCRETE, ObservationType.SYMBOLIC_FLAT, None, env_params, static_params, auto_reset=False
+        )
+        env = self.env
+        key = jax.random.PRNGKey(0)  # unused by kinetix when auto_reset is off
+
+        def one(state, action, env_params):
+            def body(carry, _):
+                state, done, goal, reward, steps = carry
+                _, nxt, r, d, info = env.step(key, state, action, env_params)
+                live = ~done
+                state = jax.tree.map(lambda a, b: jnp.where(live, a, b), nxt, state)
+                goal = jnp.where(live, info["GoalR"], goal)
+                reward = jnp.where(live, r, reward)
+                steps = steps + live.astype(jnp.int32)
+                done = done | d
+                return (state, done, goal, reward, steps), None
+
+            init = (state, jnp.bool_(False), jnp.bool_(False), jnp.float32(0.0), jnp.int32(0))
+            (state, done, goal, reward, steps), _ = jax.lax.scan(body, init, None, length=STEPS_PER_DECISION)
+            return state, done, goal, reward, steps
+
+        self._fn = jax.jit(jax.vmap(one, in_axes=(0, 0, None)))
+        self._compiled: set[int] = set()
+
+    def decide(self, states: list[Any], actions: np.ndarray) -> list[DecisionOut]:
+        """Run one decision for each (state, 6-vector action); batches go through vmap."""
+        import jax
+
+        assert len(states) == len(actions)
+        outs: list[DecisionOut] = []
+        i = 0
+        while i < len(states):
+            n = next(b for b in BUCKETS if b <= len(states) - i)
+            batch = jax.tree.map(lambda *xs: np.stack(xs), *states[i : i + n])
+            res = jax.device_get(self._fn(batch, np.asarray(actions[i : i + n], np.int32), self.env_params))
+            self._compiled.add(n)
+            state, done, goal, reward, steps = res
+            for k in range(n):
+                s = jax.tree.map(lambda x: x[k], state)
+                outs.append(
+                    DecisionOut(
+                        state=s,
+                        done=bool(done[k]),
+                        goal=bool(goal[k]),
+                        reward=float(reward[k]),
+                        steps=int(steps[k]),
+                        timestep=int(s.timestep),
+                    )
+                )
+            i += n
+        return outs
+
+
+_sims: dict[Any, Sim] = {}
+
+
+def get_sim(level: Level) -> Sim:
+    """The compiled stepping for the level's size: built once per size per process.
+
+    (All shipped levels of a size share StaticEnvParams, and all share EnvParams.)
+    """
+    with _lock:
+        key = (level.static_params, level.env_params)
+        if key not in _sims:
+            _sims[key] = Sim(level.static_params, level.env_params)
+        return _sims[key]

@@ -1,0 +1,96 @@
+"""The Kinetix action syntax: a JSON list of integers, one per controllable motor, then one
+per thruster. Pure Python: no JAX, so a model process can rebuild the space from JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from typing import Any, Literal, Sequence
+
+import numpy as np
+
+from deepphy.envs.base import Action, ActionSpace, InvalidAction
+
+MOTOR_VALUES = (0, 1, 2)  # off, forward, reverse
+THRUSTER_VALUES = (0, 1)  # off, on
+
+
+class KinetixAction(Action):
+    """One decision: a value per controllable motor (0 off, 1 forward, 2 reverse) and per
+    thruster (0 off, 1 on), in label order M0.., T0..."""
+
+    motors: tuple[int, ...]
+    thrusters: tuple[int, ...]
+
+
+_FENCE = re.compile(r"```[a-z]*", re.I)
+
+
+class KinetixSpace(ActionSpace):
+    kind: Literal["kinetix_vector"] = "kinetix_vector"
+    num_motors: int
+    num_thrusters: int
+
+    @property
+    def length(self) -> int:
+        return self.num_motors + self.num_thrusters
+
+    def labels(self) -> list[str]:
+        return [f"M{i}" for i in range(self.num_motors)] + [f"T{i}" for i in range(self.num_thrusters)]
+
+    def parse(self, text: str) -> KinetixAction:
+        values = _first_json_list(_FENCE.sub(" ", text))
+        if len(values) != self.length:
+            raise InvalidAction(
+                f"expected a list of {self.length} integers ({', '.join(self.labels()) or 'none'}), "
+                f"got {len(values)} value(s)"
+            )
+        ints: list[int] = []
+        for label, v in zip(self.labels(), values):
+            if isinstance(v, bool) or not (isinstance(v, int) or (isinstance(v, float) and v.is_integer())):
+                raise InvalidAction(f"{label} must be an integer, got {v!r}")
+            ints.append(int(v))
+        motors, thrusters = ints[: self.num_motors], ints[self.num_motors :]
+        for i, v in enumerate(motors):
+            if v not in MOTOR_VALUES:
+                raise InvalidAction(f"M{i} must be 0 (off), 1 (forward) or 2 (reverse), got {v}")
+        for i, v in enumerate(thrusters):
+            if v not in THRUSTER_VALUES:
+                raise InvalidAction(f"T{i} must be 0 (off) or 1 (on), got {v}")
+        return KinetixAction(motors=tuple(motors), thrusters=tuple(thrusters))
+
+    def sample(self, rng: np.random.Generator, exclude: Sequence[Action] = ()) -> KinetixAction:
+        # Every entry uniform over its values. `exclude` (actions of failed attempts) is
+        # ignored: on-the-fly decisions repeat legitimately.
+        motors = tuple(int(v) for v in rng.integers(0, 3, size=self.num_motors))
+        thrusters = tuple(int(v) for v in rng.integers(0, 2, size=self.num_thrusters))
+        return KinetixAction(motors=motors, thrusters=thrusters)
+
+    def format(self, action: Action) -> str:
+        assert isinstance(action, KinetixAction)
+        return json.dumps(list(action.motors) + list(action.thrusters))
+
+
+def _first_json_list(text: str) -> list[Any]:
+    """The first balanced [...] in `text` that parses as a flat JSON list."""
+    start = text.find("[")
+    while start != -1:
+        depth = 0
+        for end in range(start, len(text)):
+            if text[end] == "[":
+                depth += 1
+            elif text[end] == "]":
+                depth -= 1
+                if depth == 0:
+                    try:
+                        value = json.loads(text[start : end + 1])
+                    except json.JSONDecodeError:
+                        break
+                    if isinstance(value, list):
+                        if any(isinstance(v, (list, dict)) for v in value):
+                            raise InvalidAction("the action must be a flat list of integers")
+                        return value
+                    break
+        start = text.find("[", start + 1)
+    raise InvalidAction("no JSON list of integers found (expected e.g. [1, 0])")
