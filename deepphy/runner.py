@@ -8,6 +8,7 @@ import logging
 import os
 import sys
 import time
+import uuid
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -117,10 +118,15 @@ def evaluate(
         _check_unique(existing, out)
         started_ray = ensure_ray(runtime)
         n_workers = runtime.env_workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
-        env_workers = [make_env_worker(config.env, config.env_options) for _ in range(n_workers)]
-        model_worker = make_model_worker(config.model, **(client_options or {}))
+        # Named "deepphy/<run id>/<role>": a dashboard or an operator can find a live run's
+        # metrics actor (ray.util.list_named_actors) and poll its snapshot.
+        prefix = f"deepphy/{uuid.uuid4().hex[:8]}"
+        env_workers = [
+            make_env_worker(config.env, config.env_options, name=f"{prefix}/env{i}") for i in range(n_workers)
+        ]
+        model_worker = make_model_worker(config.model, name=f"{prefix}/model", **(client_options or {}))
         total = len(tasks) * config.runs
-        metrics = make_metrics_actor(total, k_max)
+        metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics")
         actors = [*env_workers, model_worker, metrics]
         ray.get(metrics.add.remote(existing, resumed=True), timeout=RAY_TIMEOUT_S)
         scheduler = Scheduler(config, runtime, env_cls, tasks, store, env_workers, model_worker, metrics, k_max)

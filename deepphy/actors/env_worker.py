@@ -67,7 +67,7 @@ class EnvWorkerImpl:
         return os.getpid()
 
 
-def make_env_worker(env: str, options: dict[str, Any], *, max_restarts: int = 5):
+def make_env_worker(env: str, options: dict[str, Any], *, name: str | None = None, max_restarts: int = 5):
     """An EnvWorker actor handle: one logical CPU, restarted if its process dies."""
     actor = ray.remote(num_cpus=1, max_restarts=max_restarts, max_concurrency=1000)(EnvWorkerImpl)
-    return actor.remote(env, options)
+    return actor.options(name=name).remote(env, options)

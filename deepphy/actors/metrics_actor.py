@@ -51,5 +51,5 @@ class MetricsImpl:
         }
 
 
-def make_metrics_actor(episodes_total: int, max_attempts: int):
-    return ray.remote(num_cpus=0)(MetricsImpl).remote(episodes_total, max_attempts)
+def make_metrics_actor(episodes_total: int, max_attempts: int, *, name: str | None = None):
+    return ray.remote(num_cpus=0)(MetricsImpl).options(name=name).remote(episodes_total, max_attempts)

@@ -18,7 +18,7 @@ class ModelWorkerImpl:
         await self.client.close()
 
 
-def make_model_worker(model: str, *, max_concurrency: int = 1000, **client_options):
+def make_model_worker(model: str, *, name: str | None = None, max_concurrency: int = 1000, **client_options):
     # Stateless: a crashed worker is restarted and its in-flight calls retried by Ray.
     actor = ray.remote(num_cpus=0, max_restarts=5, max_task_retries=3, max_concurrency=max_concurrency)(ModelWorkerImpl)
-    return actor.remote(model, **client_options)
+    return actor.options(name=name).remote(model, **client_options)

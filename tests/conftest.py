@@ -1,0 +1,44 @@
+"""Shared fixtures: one real local Ray runtime per test session, on loopback."""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+
+import pytest
+
+# Before Ray or pygame are imported anywhere. Auth off: a purely local loopback cluster
+# that the CLI subprocesses of the tests join with --address.
+os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+os.environ.setdefault("RAY_AUTH_MODE", "disabled")
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+os.environ.setdefault("DEEPPHY_CACHE_DIR", os.path.join(tempfile.gettempdir(), "deepphy-test-cache"))
+
+RAY_TIMEOUT_S = 120
+
+
+@pytest.fixture(scope="session")
+def ray_cluster():
+    """A 2-CPU Ray runtime for the whole session; yields its GCS address."""
+    import logging
+
+    import ray
+
+    temp_dir = tempfile.mkdtemp(prefix="dpray", dir="/tmp")  # short: socket paths have a length limit
+    context = ray.init(
+        num_cpus=2,
+        _node_ip_address="127.0.0.1",
+        include_dashboard=False,
+        object_store_memory=200 * 1024**2,
+        _temp_dir=temp_dir,
+        logging_level=logging.WARNING,
+    )
+    yield context.address_info["gcs_address"]
+    ray.shutdown()
+
+
+@pytest.fixture
+def deepphy_cmd():
+    """The CLI, run with this interpreter."""
+    return [sys.executable, "-m", "deepphy.cli"]

@@ -1,0 +1,95 @@
+"""The protocol's figures on hand-computed examples."""
+
+import math
+
+import pytest
+
+from deepphy.config import RunConfig
+from deepphy.envs import Task
+from deepphy.metrics import figures as F
+from deepphy.metrics.report import build_report, render_csv, render_markdown, render_text
+from deepphy.runs.records import AttemptRecord, StepRecord
+
+
+def rec(task, run, attempt, success=False, invalid=None, stars=None, steps=1, group=""):
+    return AttemptRecord(
+        env="iphyre", task=task, group=group, run=run, attempt=attempt, model="mock", format="vla", seed=0,
+        steps=[StepRecord(step=i + 1, prompt="p", raw_output="x") for i in range(steps)],
+        success=success, invalid_reason=invalid, stars=stars,
+    )
+
+
+def episode_records(task, run, solved_at=None, k=10, invalid_at=(), group=""):
+    n = solved_at or k
+    return [
+        rec(task, run, a, success=(a == solved_at), invalid="bad" if a in invalid_at else None, group=group)
+        for a in range(1, n + 1)
+    ]
+
+
+def test_success_at_k_is_cumulative_and_hand_computed():
+    # 4 tasks: solved at 1, at 3, at 10, never.
+    records = (episode_records("a", 0, 1) + episode_records("b", 0, 3) + episode_records("c", 0, 10)
+               + episode_records("d", 0, None))
+    eps = F.episodes(records)
+    assert [F.success_at(eps, k) for k in (1, 2, 3, 9, 10)] == [0.25, 0.25, 0.5, 0.5, 0.75]
+    assert F.average_attempts(eps) == pytest.approx((1 + 3 + 10) / 3)
+    # Denominator is the task set, not the episodes seen so far.
+    assert F.success_at(eps, 10, n_tasks=8) == 3 / 8
+
+
+def test_average_attempts_none_when_nothing_solved():
+    assert F.average_attempts(F.episodes(episode_records("a", 0, None))) is None
+
+
+def test_auccess_excludes_invalid_attempts():
+    # Solved at attempt 3 after two invalid attempts: 1 valid attempt to solve -> s_k = 1 for all k.
+    eps = F.episodes(episode_records("a", 0, 3, invalid_at=(1, 2)))
+    assert eps[0].invalid == 2
+    assert F.auccess(eps) == pytest.approx(1.0)
+    # Solved at the 2nd valid attempt: s_1 = 0, s_k = 1 for k >= 2.
+    eps = F.episodes(episode_records("a", 0, 2))
+    w = [math.log(k + 1) - math.log(k) for k in range(1, 101)]
+    assert F.auccess(eps) == pytest.approx(sum(w[1:]) / sum(w))
+
+
+def test_stars_figures():
+    records = [rec("a", 0, 1, success=True, stars=3), rec("b", 0, 1, success=True, stars=1),
+               rec("c", 0, 1, success=False, stars=0)]
+    s = F.stars(F.episodes(records))
+    assert (s.total, s.mean_all, s.mean_completed) == (4, 4 / 3, 2.0)
+    assert s.levels_with == {1: 1, 2: 0, 3: 1}
+
+
+def test_success_within_steps():
+    records = [rec("a", 0, 1, success=True, steps=2), rec("b", 0, 1, success=True, steps=7), rec("c", 0, 1, steps=15)]
+    eps = F.episodes(records)
+    assert [F.success_within_steps(eps, k) for k in (1, 3, 6, 9, 15)] == [0, 1 / 3, 1 / 3, 2 / 3, 2 / 3]
+    assert F.average_steps(eps) == 4.5
+
+
+def test_mean_std_over_runs():
+    ms = F.MeanStd.of([0.5, 0.7, None])
+    assert ms.mean == pytest.approx(0.6) and ms.std == pytest.approx(math.sqrt(0.02))
+    assert F.MeanStd.of([0.4]).std == 0.0
+    assert F.MeanStd.of([None]).mean is None
+
+
+def test_report_counts_add_up_per_run_and_group():
+    tasks = [Task(env="iphyre", id=t, group=g) for t, g in [("a", "x"), ("b", "x"), ("c", "y")]]
+    config = RunConfig(runs=2)
+    records = (episode_records("a", 0, 2, group="x") + episode_records("b", 0, None, group="x")
+               + episode_records("a", 1, 1, group="x") + episode_records("b", 1, 5, group="x")
+               + episode_records("c", 1, None, group="y")[:4])  # c run 0 missing, run 1 unfinished
+    report = build_report(config, tasks, records, k_max=10)
+    runs = report["overall"]["per_run"]
+    assert [(r["solved"], r["unsolved"], r["unfinished"]) for r in runs] == [(1, 1, 1), (2, 0, 1)]
+    for r in runs:
+        assert r["solved"] + r["unsolved"] + r["unfinished"] == r["tasks"] == 3
+        assert all(a <= b for a, b in zip(r["success_at"], r["success_at"][1:]))
+    assert report["overall"]["mean"]["success_at"][0] == pytest.approx((0 + 1 / 3) / 2)
+    assert report["groups"]["x"]["per_run"][1]["success_at"][4] == 1.0
+    assert report["groups"]["y"]["tasks"] == 1
+    for render in (render_text, render_markdown, render_csv):
+        out = render(report)
+        assert "Att.10" in out and "16.7" in out  # mean Att.1 = 1/6

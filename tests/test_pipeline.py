@@ -1,0 +1,121 @@
+"""The full pipeline on a real local Ray runtime and the real I-PHYRE."""
+
+import os
+import signal
+import threading
+import time
+from collections import Counter
+
+import pytest
+
+from deepphy.config import RunConfig, RuntimeOptions
+from deepphy.runner import evaluate
+from deepphy.runs.store import ATTEMPTS, read_records
+
+RAY_TIMEOUT_S = 120
+
+TASKS = ["support", "hinder", "direction", "hole", "spring_flick", "multi_ball_lever"]
+CONFIG = RunConfig(env="iphyre", model="mock", runs=2, seed=7, tasks=TASKS)
+RUNTIME = RuntimeOptions(progress=False, env_workers=2)
+
+
+def views(path):
+    return sorted((r.deterministic_view() for r in read_records(path)), key=lambda v: (v["task"], v["run"], v["attempt"]))
+
+
+def assert_complete(path, config, k=10):
+    records = read_records(path)
+    keys = Counter((r.task, r.run, r.attempt) for r in records)
+    assert max(keys.values()) == 1, "duplicate attempt records"
+    for task in config.tasks:
+        for run in range(config.runs):
+            attempts = sorted(r.attempt for r in records if (r.task, r.run) == (task, run))
+            assert attempts == list(range(1, len(attempts) + 1))
+            last = next(r for r in records if (r.task, r.run, r.attempt) == (task, run, attempts[-1]))
+            assert last.success or len(attempts) == k
+            assert not any(r.success for r in records if (r.task, r.run) == (task, run) and r.attempt < attempts[-1])
+    return records
+
+
+@pytest.fixture(scope="module")
+def baseline(ray_cluster, tmp_path_factory):
+    out = tmp_path_factory.mktemp("baseline")
+    outcome = evaluate(CONFIG, out, RUNTIME)
+    assert outcome.complete and outcome.episodes_total == len(TASKS) * 2
+    return out
+
+
+def test_run_completes_one_record_per_attempt(baseline):
+    records = assert_complete(baseline, CONFIG)
+    assert any(r.success for r in records) and any(not r.success for r in records)
+    assert all(len(r.key_frames) == 1 and (baseline / r.key_frames[0].path).exists() for r in records)
+    # spring_flick is solved by doing nothing; MOCK always removes something, so it never is
+    # at attempt 1 -- a weak check that history and prompts are stored
+    assert all((baseline / "prompts" / f"{s.prompt}.json").exists() for r in records for s in r.steps)
+
+
+def test_same_seed_same_records(baseline, tmp_path):
+    evaluate(CONFIG, tmp_path, RUNTIME.model_copy(update={"env_workers": 1}))
+    assert views(tmp_path) == views(baseline)
+
+
+def test_other_seed_other_actions(baseline, tmp_path):
+    evaluate(RunConfig(**{**CONFIG.model_dump(), "seed": 8}), tmp_path, RUNTIME)
+    ours = {(v["task"], v["run"], v["attempt"]): v["steps"][0]["action_text"] for v in views(tmp_path)}
+    base = {(v["task"], v["run"], v["attempt"]): v["steps"][0]["action_text"] for v in views(baseline)}
+    assert ours != base
+
+
+def test_resume_after_a_cut_log_finishes_the_same_run(baseline, tmp_path):
+    evaluate(CONFIG, tmp_path, RUNTIME)
+    log = tmp_path / ATTEMPTS
+    lines = log.read_bytes().split(b"\n")
+    kept = len(lines) // 3
+    log.write_bytes(b"\n".join(lines[:kept]) + b"\n" + lines[kept][:40])  # whole lines + a torn one
+    outcome = evaluate(CONFIG, tmp_path, RUNTIME)
+    assert outcome.complete and outcome.new_records == len(lines) - 1 - kept
+    assert_complete(tmp_path, CONFIG)
+    assert views(tmp_path) == views(baseline)
+
+
+def test_resume_of_a_complete_run_adds_nothing(baseline, tmp_path):
+    import shutil
+
+    shutil.copytree(baseline, tmp_path / "copy")
+    outcome = evaluate(CONFIG, tmp_path / "copy", RUNTIME)
+    assert outcome.complete and outcome.new_records == 0
+    assert views(tmp_path / "copy") == views(baseline)
+
+
+def test_crashed_env_worker_attempt_is_retried(baseline, tmp_path):
+    """kill -9 one environment worker mid-run: Ray restarts it, the scheduler re-runs its
+    attempts, and the finished run equals the uninterrupted one."""
+    import ray
+
+    result = {}
+    thread = threading.Thread(target=lambda: result.update(outcome=evaluate(CONFIG, tmp_path, RUNTIME)))
+    thread.start()
+    deadline = time.time() + RAY_TIMEOUT_S
+    killed = None
+    while killed is None and time.time() < deadline and thread.is_alive():
+        names = [a["name"] for a in ray.util.list_named_actors(all_namespaces=True)]
+        workers = [n for n in names if n.startswith("deepphy/") and "/env" in n]
+        log = tmp_path / ATTEMPTS
+        if workers and log.exists() and log.read_bytes().count(b"\n") >= 5:
+            pid = ray.get(ray.get_actor(workers[0]).ping.remote(), timeout=RAY_TIMEOUT_S)
+            os.kill(pid, signal.SIGKILL)
+            killed = pid
+        time.sleep(0.05)
+    thread.join(timeout=300)
+    assert killed is not None, "the run finished before a worker could be killed"
+    assert result["outcome"].complete
+    assert_complete(tmp_path, CONFIG)
+    assert views(tmp_path) == views(baseline)
+
+
+def test_wm_format_records_predictions(ray_cluster, tmp_path):
+    config = RunConfig(**{**CONFIG.model_dump(), "format": "wm", "runs": 1, "tasks": TASKS[:2]})
+    evaluate(config, tmp_path, RUNTIME)
+    records = read_records(tmp_path)
+    assert records and all(s.prediction and s.action_text for r in records for s in r.steps)
+    assert all(s.raw_output.startswith("Prediction:") for r in records for s in r.steps)
