@@ -67,6 +67,7 @@ class Faults(BaseModel):
     kinds: list[str] = Field(default_factory=lambda: list(FAULT_KINDS))
     retry_after_s: float = Field(1.0, ge=0)
     hang_s: float = Field(3600.0, ge=0)
+    first_tries: int = Field(0, ge=0, description="fault the first N arrivals of every distinct request (tests), on top of `rate`")
 
     @field_validator("kinds")
     @classmethod
@@ -321,7 +322,7 @@ class MockServer:
         ):
             app.router.add_post(path, self._handler(fmt))
         app.router.add_get("/stats", self._stats)
-        app.router.add_get("/health", lambda r: web.json_response({"ok": True}))
+        app.router.add_get("/health", self._health)
         app.router.add_get("/admin/bodies", self._bodies)
         app.router.add_post("/admin/config", self._configure)
         app.router.add_post("/admin/reset", self._reset_route)
@@ -364,6 +365,9 @@ class MockServer:
     async def _stats(self, request: web.Request) -> web.Response:
         return web.json_response(self.stats(request.query.get("arrivals", "1") != "0"))
 
+    async def _health(self, request: web.Request) -> web.Response:
+        return web.json_response({"ok": True})
+
     async def _bodies(self, request: web.Request) -> web.Response:
         return web.json_response(list(self.bodies))
 
@@ -397,8 +401,6 @@ class MockServer:
             finally:
                 self.in_flight -= 1
                 self.statuses[status] += 1  # 0: the client went away first (e.g. a hang)
-                if fault:
-                    self.faults[fault] += 1
                 if self.config.log_path:
                     with open(self.config.log_path, "a") as f:
                         f.write(json.dumps({"t": arrived, "api": fmt.name, "fault": fault, "status": status}) + "\n")
@@ -414,7 +416,7 @@ class MockServer:
         self.seen[digest] += 1
         rng = _rng(cfg.seed, digest, nth)
         fault = None
-        if rng.random() < cfg.faults.rate:
+        if nth < cfg.faults.first_tries or rng.random() < cfg.faults.rate:
             fault = cfg.faults.kinds[int(rng.integers(len(cfg.faults.kinds)))]
         delay = cfg.latency_s + (rng.random() * cfg.latency_jitter_s if cfg.latency_jitter_s else 0.0)
         if cfg.record_bodies:
@@ -439,6 +441,8 @@ class MockServer:
             return err(400, "request body is not valid JSON"), None
         except BadRequest as e:
             return err(400, str(e)), None
+        if fault:
+            self.faults[fault] += 1  # counted when served (a hang is cut short by the client)
         if delay:
             await asyncio.sleep(delay)
         if fault == "429":
@@ -544,6 +548,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--faults", default=",".join(FAULT_KINDS), help=f"comma list of {','.join(FAULT_KINDS)}")
     ap.add_argument("--retry-after", type=float, default=1.0, help="Retry-After seconds sent with 429")
     ap.add_argument("--hang", type=float, default=3600.0, help="seconds a 'hang' fault holds the request")
+    ap.add_argument("--first-tries", type=int, default=0, help="fault the first N arrivals of every distinct request")
     ap.add_argument("--require-key-env", default=None, help="require the key held in this env var")
     ap.add_argument("--record-bodies", type=int, default=0, help="keep the last N request bodies (GET /admin/bodies)")
     ap.add_argument("--log", default=None, help="append one JSON line per request (arrival time, fault, status)")
@@ -552,7 +557,8 @@ def main(argv: list[str] | None = None) -> None:
         latency_s=a.latency,
         latency_jitter_s=a.latency_jitter,
         seed=a.seed,
-        faults=Faults(rate=a.fault_rate, kinds=[k for k in a.faults.split(",") if k], retry_after_s=a.retry_after, hang_s=a.hang),
+        faults=Faults(rate=a.fault_rate, kinds=[k for k in a.faults.split(",") if k], retry_after_s=a.retry_after, hang_s=a.hang,
+                      first_tries=a.first_tries),
         require_key_env=a.require_key_env,
         record_bodies=a.record_bodies,
         log_path=a.log,
