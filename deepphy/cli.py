@@ -39,6 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--address", help="join an existing Ray cluster (default: start a local one)")
     run.add_argument("--num-cpus", type=int, default=2, help="CPUs of the local cluster; default 2")
     run.add_argument("--env-workers", type=int, help="environment worker actors (default: one per CPU)")
+    run.add_argument("--env-resource", metavar="NAME",
+                     help="place environment workers only on nodes with this custom Ray resource")
     run.add_argument("--max-in-flight", type=int, default=256, help="episodes in progress at once; default 256")
     run.add_argument("--no-progress", action="store_true", help="no live progress line")
 
@@ -85,6 +87,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         )
         runtime = RuntimeOptions(
             address=args.address, num_cpus=args.num_cpus, env_workers=args.env_workers,
+            env_resource=args.env_resource,
             max_in_flight=args.max_in_flight, progress=not args.no_progress,
         )
     except ValidationError as e:

@@ -45,6 +45,7 @@ class RuntimeOptions(BaseModel):
     address: str | None = None  # join an existing Ray cluster; None: start a local one
     num_cpus: int = Field(2, ge=1)  # local cluster only
     env_workers: int | None = Field(None, ge=1)  # default: one per CPU of the cluster
+    env_resource: str | None = None  # custom Ray resource that marks the nodes for env workers
     max_in_flight: int = Field(256, ge=1)  # episodes (task x run) in progress at once
     progress: bool = True
     step_timeout_s: float = Field(600.0, gt=0)  # one env call (first Kinetix step compiles)

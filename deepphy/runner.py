@@ -117,12 +117,13 @@ def evaluate(
         existing = read_records(out)
         _check_unique(existing, out)
         started_ray = ensure_ray(runtime)
-        n_workers = runtime.env_workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
+        n_workers = runtime.env_workers or _default_workers(runtime.env_resource)
         # Named "deepphy/<run id>/<role>": a dashboard or an operator can find a live run's
         # metrics actor (ray.util.list_named_actors) and poll its snapshot.
         prefix = f"deepphy/{uuid.uuid4().hex[:8]}"
         env_workers = [
-            make_env_worker(config.env, config.env_options, name=f"{prefix}/env{i}") for i in range(n_workers)
+            make_env_worker(config.env, config.env_options, name=f"{prefix}/env{i}", resource=runtime.env_resource)
+            for i in range(n_workers)
         ]
         model_worker = make_model_worker(config.model, name=f"{prefix}/model", **(client_options or {}))
         total = len(tasks) * config.runs
@@ -148,6 +149,14 @@ def evaluate(
                 pass
         if started_ray:
             ray.shutdown()
+
+
+def _default_workers(resource: str | None) -> int:
+    """One worker per CPU of the nodes that may host environment workers."""
+    import ray
+
+    nodes = [n for n in ray.nodes() if n.get("Alive") and (resource is None or resource in n["Resources"])]
+    return max(1, int(sum(n["Resources"].get("CPU", 0) for n in nodes)))
 
 
 def _check_unique(records: Sequence[Any], out: str | Path) -> None:

@@ -67,7 +67,13 @@ class EnvWorkerImpl:
         return os.getpid()
 
 
-def make_env_worker(env: str, options: dict[str, Any], *, name: str | None = None, max_restarts: int = 5):
-    """An EnvWorker actor handle: one logical CPU, restarted if its process dies."""
+def make_env_worker(
+    env: str, options: dict[str, Any], *, name: str | None = None, resource: str | None = None, max_restarts: int = 5
+):
+    """An EnvWorker actor handle: one logical CPU, restarted if its process dies.
+
+    `resource` places it only on nodes that declare that custom resource (e.g. `physics`);
+    a token amount is asked so CPUs, not the resource, bound the number of workers."""
     actor = ray.remote(num_cpus=1, max_restarts=max_restarts, max_concurrency=1000)(EnvWorkerImpl)
-    return actor.options(name=name).remote(env, options)
+    resources = {resource: 0.001} if resource else None
+    return actor.options(name=name, resources=resources).remote(env, options)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+import os
 import re
 from typing import Any, Literal, Sequence
 
@@ -40,6 +41,8 @@ from deepphy.envs.base import (
     Task,
 )
 from deepphy.envs.images import Image, draw_label, stack_frames
+
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")  # iphyre imports pygame, which greets on stdout
 
 MAX_TIME = 15.0  # seconds simulated per attempt (iphyre's max_time)
 FPS = 60
