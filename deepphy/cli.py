@@ -53,6 +53,12 @@ def build_parser() -> argparse.ArgumentParser:
     envs = sub.add_parser("envs", help="list environments and their task counts")
     envs.add_argument("--tasks", metavar="ENV", help="list the task ids of one environment")
 
+    watch = sub.add_parser("watch", help="stream the live progress of the runs on a Ray cluster")
+    watch.add_argument("--address", required=True, help="the cluster's address (as given to `run --address`)")
+    watch.add_argument("--interval", type=float, default=2.0, help="seconds between snapshots; default 2")
+    watch.add_argument("--once", action="store_true", help="print one snapshot per live run and exit")
+    watch.add_argument("--json", action="store_true", help="one JSON object per line (for dashboards)")
+
     show = sub.add_parser("show", help="write the images a model would see for one task")
     show.add_argument("--env", required=True)
     show.add_argument("--task", required=True)
@@ -163,7 +169,38 @@ def cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_show}
+def cmd_watch(args: argparse.Namespace) -> int:
+    import json
+    import time
+
+    import ray
+
+    from deepphy.config import RuntimeOptions
+    from deepphy.runner import ensure_ray, format_progress
+
+    ensure_ray(RuntimeOptions(address=args.address))
+    seen = False
+    while True:
+        live = [a for a in ray.util.list_named_actors(all_namespaces=True)
+                if a["name"].startswith("deepphy/") and a["name"].endswith("/metrics")]
+        for actor in live:
+            run_id = actor["name"].split("/")[1]
+            try:
+                handle = ray.get_actor(actor["name"], namespace=actor["namespace"])
+                snap = ray.get(handle.snapshot.remote(), timeout=10)
+            except Exception:  # noqa: BLE001 - the run ended between listing and asking
+                continue
+            seen = True
+            print(json.dumps({"run_id": run_id, **snap}) if args.json else f"[{run_id}] {format_progress(snap)}",
+                  flush=True)
+        if args.once:
+            if not seen:
+                print("no deepphy run is live on this cluster", file=sys.stderr)
+            return 0 if seen else 1
+        time.sleep(args.interval)
+
+
+COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_show, "watch": cmd_watch}
 
 
 def main(argv: list[str] | None = None) -> int:

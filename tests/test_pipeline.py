@@ -119,3 +119,24 @@ def test_wm_format_records_predictions(ray_cluster, tmp_path):
     records = read_records(tmp_path)
     assert records and all(s.prediction and s.action_text for r in records for s in r.steps)
     assert all(s.raw_output.startswith("Prediction:") for r in records for s in r.steps)
+
+
+def test_watch_streams_a_live_runs_snapshot(ray_cluster, tmp_path, capsys):
+    """`deepphy watch` finds the run's metrics actor on the cluster and prints its progress."""
+    import json
+
+    from deepphy.cli import main
+
+    thread = threading.Thread(target=lambda: evaluate(CONFIG, tmp_path, RUNTIME))
+    thread.start()
+    snapshots = []
+    deadline = time.time() + RAY_TIMEOUT_S
+    while thread.is_alive() and time.time() < deadline and not snapshots:
+        if main(["watch", "--address", ray_cluster, "--once", "--json"]) == 0:
+            snapshots = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+        time.sleep(0.2)
+    thread.join(timeout=300)
+    assert snapshots, "no live snapshot seen while the run was going"
+    snap = snapshots[0]
+    assert snap["episodes_total"] == len(TASKS) * CONFIG.runs and 0 <= snap["episodes_done"] <= snap["episodes_total"]
+    assert main(["watch", "--address", ray_cluster, "--once"]) == 1  # the run is over: nothing live
