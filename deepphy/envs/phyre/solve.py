@@ -133,21 +133,20 @@ def generate(templates_: list[int], jobs: int, budget: int) -> None:
     data.setdefault("about", "accepted sub-seed and one verified solving placement [x, y, r] (px, y up) per "
                              "variant; written by `python -m deepphy.envs.phyre.solve generate`")
     store = data.setdefault("templates", {})
-    work = [(t, v, budget) for t in templates_ for v in range(VARIANTS)]
-    results: dict[int, list] = {t: [None] * VARIANTS for t in templates_}
     t0 = time.time()
     with ProcessPoolExecutor(jobs) as pool:
-        for t, v, entry, note in pool.map(_generate_one, work, chunksize=4):
-            results[t][v] = entry
-            if entry is None:
-                print(f"template {t:02d} variant {v:02d}: FAILED ({note})", file=sys.stderr)
-    for t in templates_:
-        store[str(t)] = results[t]
-        skipped = sum(1 for e in results[t] if e is None)
-        seeds = [e[0] for e in results[t] if e is not None]
-        print(f"template {t:02d}: {VARIANTS - skipped}/{VARIANTS} verified, mean sub-seed {np.mean(seeds):.1f}")
-    data["templates"] = {k: store[k] for k in sorted(store, key=int)}
-    VARIANTS_FILE.write_text(json.dumps(data, separators=(",", ":")).replace("],\"", "],\n\"") + "\n")
+        for t in templates_:
+            entries: list = [None] * VARIANTS
+            for _, v, entry, note in pool.map(_generate_one, [(t, v, budget) for v in range(VARIANTS)]):
+                entries[v] = entry
+                if entry is None:
+                    print(f"template {t:02d} variant {v:02d}: FAILED ({note})", file=sys.stderr)
+            store[str(t)] = entries
+            seeds = [e[0] for e in entries if e is not None]
+            print(f"template {t:02d}: {len(seeds)}/{VARIANTS} verified, mean sub-seed {np.mean(seeds):.1f}, "
+                  f"{time.time() - t0:.0f} s", flush=True)
+            data["templates"] = {k: store[k] for k in sorted(store, key=int)}
+            VARIANTS_FILE.write_text(json.dumps(data, separators=(",", ":")).replace("],[", "],\n[") + "\n")
     print(f"wrote {VARIANTS_FILE} in {time.time() - t0:.0f} s")
 
 
