@@ -64,10 +64,14 @@ def resolve(config: RunConfig) -> tuple[type[Environment], list[Task], int]:
 
 
 def quiet_environment() -> None:
-    """Environment variables for this process and the Ray processes it starts."""
+    """Environment variables for this process and the Ray processes it starts.
+    Must run before `ray` is imported (Ray reads some of them at import time)."""
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
     os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
     os.environ.setdefault("RAY_DEDUP_LOGS", "0")
+    # Under `uv run`, Ray would otherwise package the working directory and build a second
+    # virtual environment for its workers; ours is already installed and identical.
+    os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
 
 
 def ensure_ray(runtime: RuntimeOptions) -> bool:
@@ -80,6 +84,8 @@ def ensure_ray(runtime: RuntimeOptions) -> bool:
     if runtime.address:
         ray.init(address=runtime.address, logging_level=logging.WARNING)
         return True
+    # A local cluster on loopback keeps Ray's default token auth; its notice is noise here.
+    logging.getLogger("ray._private.authentication.authentication_token_setup").setLevel(logging.ERROR)
     ray.init(
         num_cpus=runtime.num_cpus,
         _node_ip_address="127.0.0.1",  # keep all traffic on loopback

@@ -13,6 +13,7 @@ import pytest
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 os.environ.setdefault("RAY_AUTH_MODE", "disabled")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")  # see deepphy.runner.quiet_environment
 os.environ.setdefault("DEEPPHY_CACHE_DIR", os.path.join(tempfile.gettempdir(), "deepphy-test-cache"))
 
 RAY_TIMEOUT_S = 120
