@@ -22,6 +22,7 @@ from deepphy.envs.images import Image
 ENVIRONMENTS: dict[str, str] = {
     "iphyre": "deepphy.envs.iphyre:IPhyreEnv",
     "kinetix": "deepphy.envs.kinetix:KinetixEnv",
+    "pooltool": "deepphy.envs.pooltool:PooltoolEnv",
     "phyre": "deepphy.envs.phyre:PhyreEnv",
 }
 

@@ -21,6 +21,7 @@ from deepphy.prompts.base import (
 PROMPTS: dict[str, str] = {
     "iphyre": "deepphy.prompts.iphyre:IPhyrePrompt",
     "kinetix": "deepphy.prompts.kinetix:KinetixPrompt",
+    "pooltool": "deepphy.prompts.pooltool:PooltoolPrompt",
     "phyre": "deepphy.prompts.phyre:PhyrePrompt",
 }
 

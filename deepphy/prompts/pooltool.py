@@ -1,0 +1,68 @@
+"""Pooltool prompt: single-player nine-ball; choose the cue speed and where to strike the cue ball."""
+
+from deepphy.envs import Observation, Task
+from deepphy.prompts.base import EnvPrompt
+
+
+class PooltoolPrompt(EnvPrompt):
+    env = "pooltool"
+
+    def rules(self, task: Task, observation: Observation) -> str:
+        return f"""You are playing nine-ball pool alone ("{task.id}"), one shot at a time.
+
+The image is the table seen from directly above:
+- green cloth inside brown rails; the darker green strips along the edges are the cushions;
+- the six black circles are the pockets (four corners, two in the middle of the long sides);
+- the plain white ball is the cue ball, the only ball you strike;
+- the coloured balls carry their numbers 1 to 9; the 9-ball is white with a yellow band;
+- the lowest-numbered ball on the table is the target: it is circled in magenta, and a
+  dashed line runs from the cue ball to it;
+- the faint vertical line near the left end is the head string, and the faint dot on it is
+  the head spot;
+- in the pictures of earlier shots, thin lines trace the paths the balls took (the cue
+  ball's path in white, each other ball's in its own colour).
+The text under the image lists the balls still on the table and their positions.
+
+Goal: pot the 9-ball on a legal shot, within 15 shots in total. The 9-ball counts whenever
+it drops on a legal shot, even if other balls are still on the table (for example when the
+target ball knocks it in).
+
+How a shot works: you do not aim. The cue is always pointed straight at the centre of the
+target (lowest-numbered) ball, as the dashed line shows. You choose only how hard to hit
+and where on the cue ball the cue tip strikes. You keep playing after every shot, whether
+or not you potted a ball.
+
+Rules:
+- The cue ball must hit the target ball before any other ball.
+- After that contact, some ball must fall into a pocket or some ball must touch a cushion.
+- The cue ball must not fall into a pocket (a scratch).
+- The first shot is the break: it is legal if a ball is potted or at least four numbered
+  balls touch a cushion, and the cue ball stays on the table.
+Breaking any of these is a foul. A foul does not end the game: you get ball in hand, which
+here means the cue ball is placed on the head spot (or right next to it if a ball is in
+the way). Balls potted on a foul stay down, except the 9-ball, which is put back on the
+spot in the right half of the table.
+
+Action syntax (one line): Speed: <speed>, Strikespot: <spot>
+- speed is Low, Medium or High: the cue hits the cue ball at 2, 5 or 8 metres per second.
+- spot is one of nine points on the cue ball, as seen by a player standing behind the
+  cue ball and looking along the dashed line:
+    top-left     top-centre     top-right
+    middle-left  middle-centre  middle-right
+    bottom-left  bottom-centre  bottom-right
+  Top spots give topspin (after hitting a ball the cue ball keeps rolling forward), bottom
+  spots give backspin (the cue ball stops or comes back), middle-centre gives no spin, and
+  left / right spots give side spin, which changes how the cue ball leaves a cushion and
+  pushes it slightly off the line, to the side opposite the spin. The edge spots lie half
+  a ball radius from the centre; the corner spots lie the same distance away, diagonally.
+There are 27 actions in all. A reply that does not give one speed and one spot from these
+lists is an invalid action: it is recorded as such and ends the game unsolved."""
+
+    def prediction_hint(self) -> str:
+        return (
+            "which balls the cue ball and the target ball will hit, which balls (if any) will be "
+            "potted, whether the shot will be legal, and where the cue ball will stop"
+        )
+
+    def example(self, observation: Observation) -> str:
+        return "Speed: Medium, Strikespot: top-centre"
