@@ -35,9 +35,11 @@ Decisions (documented in the README):
 - A 9-ball potted on a foul is respotted on the foot spot (w/2, 3l/4) or the nearest free
   point (standard nine-ball rule; pooltool only respots it when it was the last ball).
 - Attempts: one game per task (max_attempts 1), at most 15 shots (max_steps 15).
-- Numba: pooltool compiles its kernels on the first shot (~25 s on 2 cores). We point
+- Numba: pooltool compiles its kernels on the first shot (~25-30 s of CPU). We point
   NUMBA_CACHE_DIR at $DEEPPHY_CACHE_DIR/numba (default ~/.cache/deepphy/numba) before
-  numba is imported, so every process and worker on a machine shares one cache.
+  numba is imported, so every process and worker on a machine shares one cache, and the
+  first step of each process simulates a warm-up break under a file lock (`warm_up`), so
+  concurrent workers on a cold machine compile once, not once each.
 
 This module imports pooltool lazily: the action space must be importable (and rebuilt
 from JSON by the MOCK model) without pulling in panda3d and numba.
@@ -240,6 +242,30 @@ def _engine():
     from pooltool.physics.resolve.resolver import default_resolver
 
     return PhysicsEngine(resolver=default_resolver())
+
+
+@functools.lru_cache(maxsize=None)
+def warm_up() -> None:
+    """Compile (or load from the shared cache) pooltool's kernels by simulating one break.
+
+    Under an exclusive file lock in the cache directory: when several workers start on a
+    cold machine, one compiles and writes the cache while the others wait and then load
+    it, so the compile cost is paid once per machine. Later shots that reach a kernel the
+    break did not use compile it once and add it to the same cache.
+    """
+    import fcntl
+
+    pt = _pt()
+    lock_path = configure_numba_cache() / "pooltool-warm-up.lock"
+    lock_path.parent.mkdir(parents=True, exist_ok=True)
+    with open(lock_path, "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            system = build_system(0)
+            system.strike(V0=SPEEDS["High"], phi=pt.aim.at_ball(system, "1"), theta=0.0, a=0.0, b=0.0)
+            pt.simulate(system, engine=_engine(), inplace=True, max_events=MAX_EVENTS)
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 # -- racks ----------------------------------------------------------------------------
@@ -495,6 +521,7 @@ class PooltoolEnv(Environment):
     def step(self, action: Action) -> StepResult:
         assert isinstance(action, PoolShot) and self._system is not None
         pt = _pt()
+        warm_up()
         system, game = self._system, self._game
         target = _on_table(system)[0]
         a, b = action.offsets
