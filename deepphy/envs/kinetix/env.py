@@ -141,7 +141,7 @@ class KinetixEnv(Environment):
         firing = tuple(
             t for k, ts in enumerate(self._controls.thrusters) if action.thrusters[k] for t in ts
         )
-        frame = self._render_pair(firing)[-1]
+        images = self._images(firing)  # rendered and encoded once: observation and key frame
         outcome = "running"
         if out.done and out.goal:
             outcome = "goal"
@@ -162,9 +162,9 @@ class KinetixEnv(Environment):
         return StepResult(
             done=done,
             success=outcome == "goal",
-            observation=None if done else self._observation(firing),
+            observation=None if done else self._observation(images),
             feedback=feedback,
-            key_frames=[Image.from_array("after", f"the scene after decision {self._decision}", frame)],
+            key_frames=[Image(name="after", caption=f"the scene after decision {self._decision}", png=images[-1].png)],
             info={
                 "decision": self._decision,
                 "outcome": outcome,
@@ -176,24 +176,19 @@ class KinetixEnv(Environment):
             },
         )
 
-    def _render_pair(self, firing: tuple[int, ...] = ()) -> list[np.ndarray]:
-        """[clean] or [clean, annotated] for the current state."""
+    def _images(self, firing: tuple[int, ...] = ()) -> list[Image]:
+        """The current scene, clean and (with `annotate`) labelled, as PNG images."""
         assert self._controls is not None
         clean = render(self._state, firing)
-        if not self.options.annotate:  # type: ignore[attr-defined]
-            return [clean]
-        return [clean, annotate(clean, self._state, self._controls)[0]]
+        images = [Image.from_array("scene", "The scene now.", clean)]
+        if self.options.annotate:  # type: ignore[attr-defined]
+            labelled = annotate(clean, self._state, self._controls)[0]
+            caption = "The same scene with each motor (M<i>) and thruster (T<i>) labelled."
+            images.append(Image.from_array("annotated", caption, labelled))
+        return images
 
-    def _observation(self, firing: tuple[int, ...] = ()) -> Observation:
-        imgs = self._render_pair(firing)
-        images = [Image.from_array("scene", "The scene now.", imgs[0])]
-        if len(imgs) > 1:
-            images.append(
-                Image.from_array(
-                    "annotated", "The same scene with each motor (M<i>) and thruster (T<i>) labelled.", imgs[1]
-                )
-            )
-        return Observation(images=images, text=self._describe(), action_space=self.space)
+    def _observation(self, images: list[Image] | None = None) -> Observation:
+        return Observation(images=images or self._images(), text=self._describe(), action_space=self.space)
 
     def _describe(self) -> str:
         assert self._controls is not None and self._task is not None

@@ -10,8 +10,8 @@ Cost control:
   `<cache root>/kinetix/levels/<kinetix version>/`; later loads take milliseconds.
 - Compilation: one jitted, vmapped "decision" function (16 env steps in a `lax.scan`) per
   level size; the three sizes have one StaticEnvParams each, and all levels share their
-  EnvParams. Batches are split into bucket sizes (64, 16, 4, 1) so that a worker compiles
-  at most four shapes per size, however many episodes wait. The persistent JAX
+  EnvParams. Batches are cut into bucket shapes (64, 8, 1; a remainder of 3-7 is padded
+  to 8) so that a worker compiles at most three shapes per size, however many wait. The persistent JAX
   compilation cache lives under `<cache root>/kinetix/jax/` and is shared by workers.
 - Cache root: `$DEEPPHY_CACHE_DIR` or `~/.cache/deepphy`.
 """
@@ -34,7 +34,8 @@ import numpy as np
 from deepphy.envs.kinetix.levels import level_path
 
 STEPS_PER_DECISION = 16
-BUCKETS = (64, 16, 4, 1)  # batch shapes compiled per size; larger batches are split greedily
+BUCKETS = (64, 8, 1)  # batch shapes compiled per size (see `_chunks`)
+PAD_FROM = 3  # a remainder of 3..7 episodes is padded to 8 rather than stepped one by one
 NUM_MOTOR_BINDINGS = 4
 NUM_THRUSTER_BINDINGS = 2
 
@@ -185,14 +186,17 @@ class Sim:
 
         assert len(states) == len(actions)
         outs: list[DecisionOut] = []
-        i = 0
-        while i < len(states):
-            n = next(b for b in BUCKETS if b <= len(states) - i)
-            batch = jax.tree.map(lambda *xs: np.stack(xs), *states[i : i + n])
-            res = jax.device_get(self._fn(batch, np.asarray(actions[i : i + n], np.int32), self.env_params))
+        for start, n, real in _chunks(len(states)):
+            chunk = list(states[start : start + real])
+            acts = np.asarray(actions[start : start + real], np.int32)
+            if n > real:  # pad with copies of the first episode; their results are dropped
+                chunk += [chunk[0]] * (n - real)
+                acts = np.concatenate([acts, np.repeat(acts[:1], n - real, axis=0)])
+            batch = jax.tree.map(lambda *xs: np.stack(xs), *chunk)
+            res = jax.device_get(self._fn(batch, acts, self.env_params))
             self._compiled.add(n)
             state, done, goal, reward, steps = res
-            for k in range(n):
+            for k in range(real):
                 s = jax.tree.map(lambda x: x[k], state)
                 outs.append(
                     DecisionOut(
@@ -204,8 +208,26 @@ class Sim:
                         timestep=int(s.timestep),
                     )
                 )
-            i += n
         return outs
+
+
+def _chunks(total: int) -> list[tuple[int, int, int]]:
+    """(start, bucket shape, real episodes) covering `total` episodes."""
+    out = []
+    start = 0
+    while start < total:
+        left = total - start
+        if left >= BUCKETS[0]:
+            n = real = BUCKETS[0]
+        elif left >= BUCKETS[1]:
+            n = real = BUCKETS[1]
+        elif left >= PAD_FROM:
+            n, real = BUCKETS[1], left
+        else:
+            n = real = 1
+        out.append((start, n, real))
+        start += real
+    return out
 
 
 _sims: dict[Any, Sim] = {}

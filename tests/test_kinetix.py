@@ -1,0 +1,327 @@
+"""Kinetix on the real kinetix-env (no mocks).
+
+Caches (converted levels, JAX compilation cache) go to a directory under the system temp
+dir that is kept between test sessions, so only the first session pays for compiling.
+The fast tests compile the S size only; M and L known-good runs are marked slow.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from deepphy.envs import ActionSpace, InvalidAction, get_env_class
+from deepphy.envs.kinetix import KinetixAction, KinetixEnv, KinetixOptions, KinetixSpace
+
+ROOT = Path(__file__).resolve().parents[1]
+CACHE = Path(tempfile.gettempdir()) / "deepphy-test-cache"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _cache_dir():
+    old = os.environ.get("DEEPPHY_CACHE_DIR")
+    os.environ["DEEPPHY_CACHE_DIR"] = str(CACHE)
+    yield
+    if old is None:
+        os.environ.pop("DEEPPHY_CACHE_DIR", None)
+    else:
+        os.environ["DEEPPHY_CACHE_DIR"] = old
+
+
+def task(tid: str):
+    return next(t for t in KinetixEnv.tasks(KinetixOptions()) if t.id == tid)
+
+
+# -- tasks --------------------------------------------------------------------------------
+
+
+def test_registered_with_74_levels_by_size():
+    cls = get_env_class("kinetix")
+    assert cls is KinetixEnv
+    tasks = cls.tasks(cls.Options())
+    assert len(tasks) == 74
+    assert [sum(t.group == g for t in tasks) for g in "SML"] == [10, 24, 40]
+    ids = [t.id for t in tasks]
+    assert len(set(ids)) == 74
+    assert all(t.id.replace("_", "").isalnum() and t.id[0] in "sml" and t.id[1] == "_" for t in tasks)
+    assert tasks[0].id == "s_h0_weak_thrust" and tasks[0].params == {"level": "s/h0_weak_thrust"}
+    only_m = cls.tasks(cls.Options(sizes=["M"]))
+    assert len(only_m) == 24 and {t.group for t in only_m} == {"M"}
+    assert ids == [t.id for t in cls.tasks(cls.Options())]  # stable order
+
+
+def test_action_space_importable_without_jax():
+    code = (
+        "import sys, json; import deepphy.envs.kinetix as k; from deepphy.envs import ActionSpace;"
+        "s = ActionSpace.from_json({'kind': 'kinetix_vector', 'num_motors': 2, 'num_thrusters': 1});"
+        "print(json.dumps([s.format(s.parse('[2, 0, 1]')), 'jax' in sys.modules, 'kinetix' in sys.modules]))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == ["[2, 0, 1]", False, False]
+
+
+# -- parsing ------------------------------------------------------------------------------
+
+SPACE = KinetixSpace(num_motors=2, num_thrusters=1)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "[1, 2, 0]",
+        "[1,2,0]",
+        "```json\n[1, 2, 0]\n```",
+        "```\n[1, 2, 0]\n```",
+        "I will drive M0 forward, M1 in reverse and keep T0 off.\nAction: [1, 2, 0]",
+        "ACTION: [1, 2, 0] because [M0, M1, T0] means the motors then the thruster",
+        "The labels [M0, M1, T0] map to [1.0, 2, 0].",
+        "  [ 1 ,\n 2 ,\n 0 ]  ",
+    ],
+)
+def test_parse_accepts_the_syntax_robustly(text):
+    assert SPACE.parse(text) == KinetixAction(motors=(1, 2), thrusters=(0,))
+
+
+@pytest.mark.parametrize(
+    "text, reason",
+    [
+        ("", "no JSON list"),
+        ("I would turn the motor forward.", "no JSON list"),
+        ("[M0=1, M1=2, T0=0]", "no JSON list"),
+        ("[1, 2]", "expected a list of 3"),
+        ("[1, 2, 0, 1]", "expected a list of 3"),
+        ("[3, 0, 0]", "M0 must be 0"),
+        ("[0, -1, 0]", "M1 must be 0"),
+        ("[0, 0, 2]", "T0 must be 0 (off) or 1"),
+        ("[1, 2, true]", "T0 must be an integer"),
+        ('["1", 2, 0]', "M0 must be an integer"),
+        ("[1.5, 2, 0]", "M0 must be an integer"),
+        ("[[1, 2, 0]]", "flat list"),
+        ('{"M0": 1, "M1": 2, "T0": 0}', "no JSON list"),
+    ],
+)
+def test_parse_rejects_everything_else(text, reason):
+    with pytest.raises(InvalidAction, match=reason.replace("(", r"\(").replace(")", r"\)")):
+        SPACE.parse(text)
+
+
+def test_sample_format_roundtrip_and_uniform():
+    rng = np.random.default_rng(0)
+    space = ActionSpace.from_json(KinetixSpace(num_motors=3, num_thrusters=2).model_dump(mode="json"))
+    samples = [space.sample(rng) for _ in range(3000)]
+    for a in samples[:200]:
+        assert space.parse(space.format(a)) == a
+        assert len(json.loads(space.format(a))) == 5
+    motors = np.array([a.motors for a in samples])
+    thrusters = np.array([a.thrusters for a in samples])
+    assert set(np.unique(motors)) == {0, 1, 2} and set(np.unique(thrusters)) == {0, 1}
+    assert np.allclose(np.bincount(motors.ravel()) / motors.size, 1 / 3, atol=0.03)
+    assert abs(thrusters.mean() - 0.5) < 0.03
+    assert KinetixSpace(num_motors=0, num_thrusters=1).labels() == ["T0"]
+
+
+# -- observation and rendering (no compilation needed) -------------------------------------
+
+
+@pytest.mark.parametrize(
+    "tid, labels",
+    [
+        ("s_h3_point_the_thruster", ["M0", "T0"]),
+        ("m_h7_car_flip", ["M0", "M0", "T0", "T1"]),  # two wheels share one binding
+        ("l_grasp_easy", ["M0", "M0", "M1", "M2", "M3", "M3"]),
+    ],
+)
+def test_annotated_render_differs_exactly_where_labels_are(tid, labels):
+    from deepphy.envs.kinetix import render, sim
+
+    state = sim.load_level(task(tid).params["level"]).state
+    clean = render.render(state)
+    annotated, boxes = render.annotate(clean, state, render.controls(state))
+    assert clean.shape == annotated.shape == (500, 500, 3) and clean.dtype == np.uint8
+    assert sorted(name for name, _ in boxes) == labels
+    inside = np.zeros(clean.shape[:2], bool)
+    for _, (x0, y0, x1, y1) in boxes:
+        inside[y0:y1, x0:x1] = True
+        assert (annotated[y0:y1, x0:x1] != clean[y0:y1, x0:x1]).any()  # every label is drawn
+    changed = (annotated != clean).any(axis=2)
+    assert changed.any() and not (changed & ~inside).any()  # and nothing outside the labels changed
+    # Labels do not hide each other.
+    for i, (_, a) in enumerate(boxes):
+        for _, b in boxes[i + 1 :]:
+            assert not (a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3])
+
+
+def test_render_shows_roles_motors_and_thrusters_in_distinct_colours():
+    from deepphy.envs.kinetix import render, sim
+
+    img = render.render(sim.load_level("m/h7_car_flip").state)
+    colours = {tuple(c) for c in img.reshape(-1, 3)}
+    for colour in (render.MOTOR, render.THRUSTER, render.ROLE[1][0], render.ROLE[2][0], render.ROLE[3][0]):
+        assert colour in colours
+
+
+def test_observation_with_and_without_annotation():
+    env = KinetixEnv(KinetixOptions(annotate=True))
+    obs = env.reset(task("m_h7_car_flip"))
+    assert [i.name for i in obs.images] == ["scene", "annotated"]
+    assert obs.action_space == KinetixSpace(num_motors=1, num_thrusters=2)
+    assert "[M0, T0, T1]" in obs.text and "Goal distance" in obs.text and "Decision 1 of 16" in obs.text
+    plain = KinetixEnv(KinetixOptions(annotate=False)).reset(task("m_h7_car_flip"))
+    assert [i.name for i in plain.images] == ["scene"]
+    assert np.array_equal(plain.images[0].to_array(), obs.images[0].to_array())
+    assert not np.array_equal(obs.images[0].to_array(), obs.images[1].to_array())
+
+
+def test_controls_follow_the_levels_bindings():
+    env = KinetixEnv()
+    env.reset(task("s_h8_unicycle_balance"))  # its only motor uses binding 1, not 0
+    assert env._vector(KinetixAction(motors=(2,), thrusters=())).tolist() == [0, 2, 0, 0, 0, 0]
+    env.reset(task("m_h7_car_flip"))
+    assert env._vector(KinetixAction(motors=(1,), thrusters=(0, 1))).tolist() == [1, 0, 0, 0, 0, 1]
+    with pytest.raises(ValueError):
+        env._vector(KinetixAction(motors=(1,), thrusters=(1,)))
+
+
+def test_prompts_state_legend_syntax_and_example():
+    from deepphy.prompts import PastStep, PromptFormat, build_messages, get_prompt
+
+    prompt = get_prompt("kinetix")
+    for annotate in (True, False):
+        t = task("m_h7_car_flip")
+        obs = KinetixEnv(KinetixOptions(annotate=annotate)).reset(t)
+        for fmt in PromptFormat:
+            msgs = build_messages(prompt, fmt, t, obs, [], [PastStep(step=1, action="[1, 0, 0]", feedback="goal distance 10 px")])
+            system = msgs[0].text
+            assert "[M0, T0, T1]" in system and "green" in system and "red" in system and "16 decisions" in system
+            assert ("yellow label" in system) == annotate
+            assert obs.action_space.parse(prompt.example(obs)) is not None
+            assert "goal distance 10 px" in msgs[1].text
+
+
+# -- stepping (compiles the S size) ----------------------------------------------------------
+
+
+def _direct(level: str, vectors: list[list[int]]):
+    """Step kinetix-env itself, 16 env steps per decision: (decision that ended it, GoalR, state)."""
+    import jax
+    import jax.numpy as jnp
+    from kinetix.environment.env import make_kinetix_env
+    from kinetix.environment.spaces import ActionType, ObservationType
+    from kinetix.util.saving import load_from_json_file
+
+    state, static_params, env_params = load_from_json_file(level)
+    state = state.replace(timestep=jnp.int32(0), last_distance=jnp.float32(-1.0))
+    env = make_kinetix_env(ActionType.MULTI_DISCRETE, ObservationType.SYMBOLIC_FLAT, None, env_params, static_params, auto_reset=False)
+    key = jax.random.PRNGKey(0)
+    for k, vec in enumerate(vectors, start=1):
+        for _ in range(16):
+            _, state, reward, done, info = env.step(key, state, jnp.asarray(vec, jnp.int32), env_params)
+            if bool(done):
+                return k, bool(info["GoalR"]), float(reward), jax.device_get(state)
+    return None, False, 0.0, jax.device_get(state)
+
+
+def _ours(tid: str, actions: list[list[int]]):
+    env = KinetixEnv()
+    obs = env.reset(task(tid))
+    results = []
+    for a in actions:
+        r = env.step(obs.action_space.parse(json.dumps(a)))
+        results.append(r)
+        if r.done:
+            break
+        obs = r.observation
+    return env, results
+
+
+def _check_known_good(tid: str, actions: list[list[int]], vectors: list[list[int]]):
+    from deepphy.envs.kinetix import render
+
+    env, results = _ours(tid, actions)
+    last = results[-1]
+    assert last.done and last.success and last.info["outcome"] == "goal"
+    assert len(results) == len(actions) and all(not r.done for r in results[:-1])
+    assert [r.info["kinetix_action"] for r in results] == vectors
+    k, goal, reward, state = _direct(task(tid).params["level"], vectors)
+    assert (k, goal) == (len(actions), True) and reward > 0.5
+    assert last.info["timestep"] == int(state.timestep)
+    assert abs(render.goal_distance_px(state) - last.info["goal_distance_px"]) < 1.0
+
+
+def test_known_good_small_level_matches_kinetix():
+    # s_h0_weak_thrust: fire the only thruster twice; the ball reaches the goal in decision 2.
+    _check_known_good("s_h0_weak_thrust", [[1], [1]], [[0, 0, 0, 0, 1, 0]] * 2)
+
+
+def test_red_and_timeout_fail_like_kinetix():
+    # Without thrust the ball of s_h0 drops onto the red floor.
+    env, results = _ours("s_h0_weak_thrust", [[0]] * 16)
+    last = results[-1]
+    assert last.done and not last.success and last.info["outcome"] == "red"
+    k, goal, reward, _ = _direct("s/h0_weak_thrust", [[0] * 6] * 16)
+    assert (k, goal) == (len(results), False) and reward < -0.5
+    # A one-wheel car that does nothing never reaches the goal: 16 decisions, then time is up.
+    env, results = _ours("s_h2_one_wheel_car", [[0]] * 16)
+    assert len(results) == 16 and [r.done for r in results] == [False] * 15 + [True]
+    assert results[-1].info["outcome"] == "timeout" and results[-1].info["timestep"] == 256
+    assert results[-1].observation is None and len(results[-1].key_frames) == 1
+
+
+def test_step_many_equals_one_at_a_time():
+    import jax
+
+    ids = ["s_h0_weak_thrust", "s_h2_one_wheel_car", "s_h3_point_the_thruster", "s_h6_unicycle_right", "s_h9_explode_then_thrust_over"]
+    rng = np.random.default_rng(3)
+    single = [KinetixEnv() for _ in ids]
+    batched = [KinetixEnv() for _ in ids]
+    obs = [e.reset(task(t)) for e, t in zip(single, ids)]
+    for e, t in zip(batched, ids):
+        e.reset(task(t))
+    live = list(range(len(ids)))
+    for _ in range(3):
+        acts = [obs[i].action_space.sample(rng) for i in live]
+        one = [single[i].step(a) for i, a in zip(live, acts)]
+        many = KinetixEnv.step_many([batched[i] for i in live], acts)  # buckets of 4 and 1
+        for i, a, b in zip(live, one, many):
+            assert (a.done, a.success, a.feedback, a.info) == (b.done, b.success, b.feedback, b.info)
+            assert a.key_frames[0].png == b.key_frames[0].png
+            same = jax.tree.map(lambda x, y: np.allclose(x, y, atol=1e-4, equal_nan=True), single[i]._state, batched[i]._state)
+            assert all(jax.tree.leaves(same))
+        nxt = []
+        for i, r in zip(live, one):
+            if not r.done:
+                obs[i] = r.observation
+                nxt.append(i)
+        live = nxt
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "tid, actions, vectors",
+    [
+        ("m_h1_car_left", [[1], [1], [1]], [[1, 0, 0, 0, 0, 0]] * 3),
+        ("m_h18_thrust_right_very_easy", [[1, 0], [1, 1], [1, 1]], [[0, 0, 0, 0, 1, 0], [0, 0, 0, 0, 1, 1], [0, 0, 0, 0, 1, 1]]),
+        ("l_h3_car_right", [[2], [2], [2]], [[2, 0, 0, 0, 0, 0]] * 3),
+        ("l_h14_simple_thruster", [[1, 1], [0, 0], [1, 0]], [[0, 0, 0, 0, 1, 1], [0] * 6, [0, 0, 0, 0, 1, 0]]),
+    ],
+)
+def test_known_good_medium_and_large_levels_match_kinetix(tid, actions, vectors):
+    _check_known_good(tid, actions, vectors)
+
+
+def test_batches_are_cut_into_few_compiled_shapes():
+    from deepphy.envs.kinetix.sim import _chunks
+
+    for total in range(1, 200):
+        chunks = _chunks(total)
+        assert sum(real for _, _, real in chunks) == total
+        assert all(n in (1, 8, 64) and real <= n for _, n, real in chunks)
+        assert [start for start, _, _ in chunks] == list(np.cumsum([0] + [r for _, _, r in chunks])[:-1])
+    assert _chunks(5) == [(0, 8, 5)] and _chunks(2) == [(0, 1, 1), (1, 1, 1)]
