@@ -481,7 +481,7 @@ def _traces(system, moved: set[str]) -> dict[str, np.ndarray]:
 
 class PooltoolEnv(Environment):
     name = "pooltool"
-    title = "Pooltool (nine-ball)"
+    title = "Pooltool"
     planning = Planning.ON_THE_FLY
     max_attempts = 1
     max_steps = MAX_SHOTS
