@@ -29,6 +29,7 @@ from __future__ import annotations
 from typing import Any, Literal, Sequence
 
 import numpy as np
+from pydantic import field_validator
 
 from deepphy.envs.base import Action, EnvOptions, Environment, Observation, Planning, StepResult, Task
 from deepphy.envs.images import Image
@@ -45,6 +46,16 @@ MAX_TIMESTEPS = 256
 class KinetixOptions(EnvOptions):
     annotate: bool = True  # show the labelled render (the with/without-annotation ablation)
     sizes: tuple[Literal["S", "M", "L"], ...] = SIZES  # which level sizes make up the task set
+
+    @field_validator("sizes", mode="before")
+    @classmethod
+    def _sizes(cls, v: Any) -> Any:
+        """Also accept "S,M" or "s" (as given on the command line: --env-option sizes=S,M)."""
+        if isinstance(v, str):
+            v = [p for p in v.replace(" ", "").split(",") if p]
+        if isinstance(v, (list, tuple)):
+            v = tuple(p.upper() if isinstance(p, str) else p for p in v)
+        return v
 
 
 class KinetixEnv(Environment):
