@@ -8,7 +8,7 @@ names another.
 from pathlib import Path
 
 from deepphy.models.base import ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext, Usage
-from deepphy.models.config import MissingKey, ModelConfig, load_models
+from deepphy.models.config import MissingKey, ModelConfig, ModelsFileError, load_models
 
 
 class UnknownModel(KeyError):
@@ -46,6 +46,6 @@ def make_client(name: str, models_file: str | Path | None = None) -> ModelClient
 
 
 __all__ = [
-    "MissingKey", "ModelClient", "ModelConfig", "ModelError", "ModelRequest", "ModelResponse", "RequestContext",
+    "MissingKey", "ModelClient", "ModelConfig", "ModelsFileError", "ModelError", "ModelRequest", "ModelResponse", "RequestContext",
     "Usage", "UnknownModel", "client_from_config", "load_models", "make_client", "model_config",
 ]

@@ -28,7 +28,7 @@ from typing import Any, Literal
 from urllib.parse import urlparse
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 DEFAULT_MODELS_FILE = Path(__file__).with_name("models.yaml")
 MODELS_FILE_ENV = "DEEPPHY_MODELS_FILE"  # used when no file is given explicitly
@@ -184,8 +184,21 @@ def models_file_path(models_file: str | Path | None = None) -> Path:
     return Path(os.environ.get(MODELS_FILE_ENV) or DEFAULT_MODELS_FILE)
 
 
+class ModelsFileError(ValueError):
+    """A models file that cannot be read or is invalid. The message is for the user."""
+
+
 def load_models(models_file: str | Path | None = None) -> dict[str, ModelConfig]:
     """name -> config, from `models_file` (default: $DEEPPHY_MODELS_FILE, else the shipped file)."""
     path = models_file_path(models_file)
-    data = yaml.safe_load(path.read_text()) or {}
-    return {m.name: m for m in ModelsFile.model_validate(data).models}
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+        return {m.name: m for m in ModelsFile.model_validate(data).models}
+    except OSError as e:
+        raise ModelsFileError(f"models file {path}: {e.strerror or e}") from None
+    except yaml.YAMLError as e:
+        raise ModelsFileError(f"models file {path}: not valid YAML ({e})") from None
+    except ValidationError as e:
+        err = e.errors()[0]
+        where = ".".join(map(str, err["loc"]))
+        raise ModelsFileError(f"models file {path}: {where}: {err['msg'].removeprefix('Value error, ')}") from None

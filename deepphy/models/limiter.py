@@ -46,6 +46,7 @@ class RateLimiterCore:
         self.window = WINDOW_S + limits.window_margin_s
         rpm = limits.requests_per_min
         self.interval = self.window / rpm if rpm else 0.0
+        self.slack = min(self.interval, 1.0)
         self._tat = -math.inf  # GCRA theoretical arrival time
         self._requests: deque[float] = deque()  # grant times within the window
         self._tokens: deque[list] = deque()  # [grant time, tokens, grant id] within the window
@@ -94,7 +95,10 @@ class RateLimiterCore:
     def grant(self, tokens: int, lease_s: float, now: float) -> int:
         gid = next(self._ids)
         if self.limits.requests_per_min:
-            self._tat = max(self._tat, now) + self.interval
+            # A grant made a little late (the loop woke up late) keeps the schedule: up to
+            # `slack` of lateness is not lost, so pacing does not drift below the rate. The
+            # log of grants above still caps every window.
+            self._tat = max(self._tat, now - self.slack) + self.interval
             self._requests.append(now)
         if self.limits.tokens_per_min:
             entry = [now, tokens, gid]

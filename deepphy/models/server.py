@@ -537,6 +537,27 @@ class ServerThread:
         self.stop()
 
 
+def spawn(*args: str, timeout_s: float = 60.0):
+    """Start `python -m deepphy.models.server --port 0 ARGS` in a subprocess.
+    Returns (Popen, base URL); the caller terminates it."""
+    import subprocess
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "deepphy.models.server", "--port", "0", *args],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+        env={**os.environ, "PYGAME_HIDE_SUPPORT_PROMPT": "1"},
+    )
+    deadline = time.time() + timeout_s
+    while time.time() < deadline:
+        line = proc.stdout.readline()  # type: ignore[union-attr]
+        if "listening on " in line:
+            return proc, line.strip().rsplit(" ", 1)[-1]
+        if not line and proc.poll() is not None:
+            break
+    proc.kill()
+    raise RuntimeError("the model server did not start")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="python -m deepphy.models.server", description=__doc__.split("\n\n")[0])
     ap.add_argument("--host", default="127.0.0.1")
