@@ -27,6 +27,10 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="run or resume an evaluation into a run directory")
     run.add_argument("--env", default="iphyre", help="environment (see `deepphy envs`); default iphyre")
     run.add_argument("--model", default="mock", help="model name; default mock (random valid actions)")
+    run.add_argument("--models-file", help="YAML file of model endpoints (default: $DEEPPHY_MODELS_FILE, "
+                     "else the shipped deepphy/models/models.yaml)")
+    run.add_argument("--max-cost", type=float, metavar="USD",
+                     help="stop once the run's model cost reaches this (resume with a higher budget)")
     run.add_argument("--format", default="vla", choices=["vla", "wm"], help="prompt format; default vla")
     run.add_argument("--runs", type=int, default=3, help="repetitions of every task; default 3")
     run.add_argument("--seed", type=int, default=0, help="seed of MOCK and of any sampling; default 0")
@@ -94,13 +98,15 @@ def cmd_run(args: argparse.Namespace) -> int:
         runtime = RuntimeOptions(
             address=args.address, num_cpus=args.num_cpus, env_workers=args.env_workers,
             env_resource=args.env_resource,
-            max_in_flight=args.max_in_flight, progress=not args.no_progress,
+            max_in_flight=args.max_in_flight, progress=not args.no_progress, max_cost_usd=args.max_cost,
         )
     except ValidationError as e:
         err = e.errors()[0]
         where = ".".join(map(str, err["loc"]))
         raise UserError(f"{where + ': ' if where else ''}{err['msg'].removeprefix('Value error, ')}") from None
-    outcome = evaluate(config, args.out, runtime)
+    # absolute: model workers may run in another directory
+    client_options = {"models_file": str(Path(args.models_file).resolve())} if args.models_file else None
+    outcome = evaluate(config, args.out, runtime, client_options=client_options)
     print(f"run directory: {outcome.out} ({outcome.episodes_done}/{outcome.episodes_total} episodes complete, "
           f"{outcome.new_records} new attempt records)")
     if not outcome.complete:
@@ -205,7 +211,7 @@ COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_
 
 def main(argv: list[str] | None = None) -> int:
     from deepphy.envs import UnknownEnvironment
-    from deepphy.models import UnknownModel
+    from deepphy.models import MissingKey, ModelsFileError, UnknownModel
     from deepphy.runner import ConfigError, quiet_environment
     from deepphy.runs.store import RunDirError
 
@@ -213,7 +219,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
         return COMMANDS[args.command](args)
-    except (UserError, ConfigError, RunDirError, UnknownEnvironment, UnknownModel) as e:
+    except (UserError, ConfigError, RunDirError, UnknownEnvironment, UnknownModel, MissingKey, ModelsFileError) as e:
         print(f"deepphy: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

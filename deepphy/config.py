@@ -51,3 +51,4 @@ class RuntimeOptions(BaseModel):
     step_timeout_s: float = Field(600.0, gt=0)  # one env call (first Kinetix step compiles)
     model_timeout_s: float = Field(900.0, gt=0)  # one model call, retries included
     attempt_retries: int = Field(3, ge=0)  # re-runs of an attempt whose worker died
+    max_cost_usd: float | None = Field(None, gt=0)  # stop, resumably, once the run's model cost reaches this

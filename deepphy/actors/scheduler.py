@@ -44,6 +44,14 @@ class WorkerLost(RuntimeError):
 class ModelUnavailable(RuntimeError):
     """A model request failed for good (after the client's own retries)."""
 
+    def __init__(self, message: str, retries: int = 0) -> None:
+        super().__init__(message)
+        self.retries = retries  # transport retries the failed request spent
+
+
+class BudgetExhausted(RuntimeError):
+    """The run's cost budget (--max-cost) is spent; the attempt is left for a resume."""
+
 
 @dataclass
 class EpisodeState:
@@ -83,6 +91,8 @@ class Scheduler:
         self.prompt = get_prompt(config.env)
         self.failed: list[str] = []  # episodes abandoned (model or worker failures), for the caller
         self.stop_requested = False
+        self.spent_usd = 0.0  # model cost of the run so far (stored records + requests of this session)
+        self.budget_hit = False
 
     # -- top level --------------------------------------------------------------------
 
@@ -97,6 +107,10 @@ class Scheduler:
             if not state[(task.id, run)].finished(self.k_max)
         ]
         gate = asyncio.Semaphore(self.runtime.max_in_flight)
+        self._charge(sum(r.model_stats.usage.cost_usd for r in existing))
+        if self.budget_hit and todo:
+            self.failed.append(f"cost budget ${self.runtime.max_cost_usd:g} already reached "
+                               f"(${self.spent_usd:.4f} spent); raise --max-cost to continue")
 
         async def guarded(task: Task, run: int) -> None:
             async with gate:
@@ -104,7 +118,7 @@ class Scheduler:
                     return
                 try:
                     await self._episode(task, run, state[(task.id, run)])
-                except (ModelUnavailable, WorkerLost) as e:
+                except (ModelUnavailable, WorkerLost, BudgetExhausted) as e:
                     self.failed.append(f"{task.id} run {run}: {e}")
                     log.warning("episode %s run %d left unfinished: %s", task.id, run, e)
 
@@ -122,7 +136,7 @@ class Scheduler:
         self, task: Task, run: int, attempt: int, previous: list[AttemptRecord]
     ) -> AttemptRecord:
         """Run one attempt; re-run it from the start if its worker died or the model failed."""
-        lost = model_errors = 0
+        lost = model_errors = failed_retries = 0
         while True:
             try:
                 record = await self._attempt(task, run, attempt, previous)
@@ -134,12 +148,14 @@ class Scheduler:
                 continue
             except ModelUnavailable as e:
                 model_errors += 1
+                failed_retries += e.retries
                 if model_errors > self.max_model_requeues:
                     raise
                 log.warning("attempt %s/%d/%d: model error (%s); re-queued", task.id, run, attempt, e)
                 await asyncio.sleep(min(60.0, 2.0**model_errors))
                 continue
             record.model_stats.model_errors += model_errors
+            record.model_stats.retries += failed_retries
             return record
 
     # -- one attempt ------------------------------------------------------------------
@@ -177,9 +193,14 @@ class Scheduler:
                         tried=tried,
                     ),
                 )
+                if self.budget_hit:  # abandon the attempt unrecorded: a resume re-runs it
+                    raise BudgetExhausted(
+                        f"cost budget ${self.runtime.max_cost_usd:g} reached (${self.spent_usd:.4f} spent)"
+                    )
                 t0 = time.perf_counter()
                 response = await self._model_call(request)
                 timing.model_s += time.perf_counter() - t0
+                self._charge(response.usage.cost_usd)
                 stats.usage = stats.usage + response.usage
                 stats.retries += response.retries
                 prediction, action_text = split_reply(cfg.format, response.text)
@@ -240,9 +261,17 @@ class Scheduler:
         try:
             return await asyncio.wait_for(ref, timeout=self.runtime.model_timeout_s)
         except ModelError as e:
-            raise ModelUnavailable(str(e)) from e
+            raise ModelUnavailable(str(e), retries=getattr(e, "retries", 0)) from e
         except (asyncio.TimeoutError, RayActorError) as e:
             raise ModelUnavailable(f"model worker: {type(e).__name__}") from e
+
+    def _charge(self, cost_usd: float) -> None:
+        self.spent_usd += cost_usd
+        limit = self.runtime.max_cost_usd
+        if limit is not None and self.spent_usd >= limit and not self.budget_hit:
+            self.budget_hit = True
+            self.stop_requested = True
+            log.warning("cost budget $%g reached ($%.4f spent): stopping; raise --max-cost and resume", limit, self.spent_usd)
 
     # -- history ----------------------------------------------------------------------
 

@@ -133,7 +133,7 @@ def table(report: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
         header.append("AUCCESS")
     if "stars" in overall["mean"]:
         header += ["Stars", "Stars/lvl", "Stars/done", "1*", "2*", "3*"]
-    if any(r["model_errors"] for r in overall["per_run"]):
+    if any(r["model_errors"] or r["retries"] for r in overall["per_run"]):
         header += ["ModelErr", "Retries"]
     show_errors = "ModelErr" in header
     if any(r["cost_usd"] or r["input_tokens"] for r in overall["per_run"]):

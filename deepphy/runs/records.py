@@ -41,7 +41,7 @@ class ModelStats(BaseModel):
     """Provider-side facts; with a real model these vary between identical runs."""
 
     usage: Usage = Field(default_factory=Usage)
-    retries: int = 0  # transport retries inside successful requests
+    retries: int = 0  # transport retries, those of requests that failed for good included
     model_errors: int = 0  # requests that failed for good; each re-queued the attempt
 
 
