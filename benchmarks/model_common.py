@@ -1,0 +1,43 @@
+"""Shared by the model benchmarks: real I-PHYRE requests, the server's stats, windows."""
+
+from __future__ import annotations
+
+import bisect
+import json
+import urllib.request
+
+from deepphy.envs import get_env_class
+from deepphy.models import ModelRequest, RequestContext
+from deepphy.prompts import PromptFormat, build_messages, get_prompt
+
+
+def iphyre_requests(n: int, *, images: bool = True) -> list[ModelRequest]:
+    """`n` distinct requests (real prompts of the first 8 games; run/attempt vary the context)."""
+    cls = get_env_class("iphyre")
+    env = cls()
+    tasks = cls.tasks(env.options)[:8]
+    prompt = get_prompt("iphyre")
+    base = []
+    for task in tasks:
+        obs = env.reset(task)
+        if not images:
+            obs = obs.model_copy(update={"images": []})
+        base.append((task, obs, build_messages(prompt, PromptFormat.VLA, task, obs, [])))
+    out = []
+    for i in range(n):
+        task, obs, messages = base[i % len(base)]
+        ctx = RequestContext(env="iphyre", task_id=task.id, run=i // len(base), attempt=1, step=1, seed=0,
+                             format=PromptFormat.VLA, action_space=obs.action_space.model_dump(mode="json"))
+        out.append(ModelRequest(messages=messages, context=ctx))
+    return out
+
+
+def server_stats(url: str, arrivals: bool = True) -> dict:
+    with urllib.request.urlopen(f"{url}/stats?arrivals={int(arrivals)}", timeout=60) as r:
+        return json.load(r)
+
+
+def max_in_window(times: list[float], window: float) -> int:
+    """Most arrivals in any closed window [t, t + window]."""
+    times = sorted(times)
+    return max((bisect.bisect_right(times, t + window) - i for i, t in enumerate(times)), default=0)
