@@ -167,3 +167,45 @@ def test_ray_limiter_is_shared_by_model_workers(ray_cluster, server, tmp_path):
         for w in workers:
             ray.kill(w)
         ray.kill(limiter)
+
+
+def test_polling_callers_keep_their_place_in_the_queue():
+    """Remote callers poll in short waits; with a ticket a timed-out poll keeps its place,
+    so grants follow arrival order (no starvation), and a caller that never comes back is
+    dropped instead of holding the queue."""
+    from deepphy.models.limiter import AsyncRateLimiter
+
+    async def go():
+        lim = AsyncRateLimiter(RateLimits(requests_per_min=1200, window_margin_s=0.0))  # one per 50 ms
+        lim.ABANDON_S = 0.2
+        order: list[int] = []
+
+        async def caller(i: int) -> None:
+            await asyncio.sleep(i * 0.001)  # arrive in order
+            while (g := await lim.acquire(1, 10.0, max_wait_s=0.07, ticket=f"t{i}")) is None:
+                pass
+            order.append(i)
+            await lim.release(g, 1)
+
+        await asyncio.gather(*(caller(i) for i in range(15)))
+        return order, lim.stats()
+
+    order, stats = asyncio.run(go())
+    assert order == list(range(15)) and stats["waiting"] == 0
+
+
+def test_abandoned_ticket_gets_no_grant():
+    from deepphy.models.limiter import AsyncRateLimiter
+
+    async def go():
+        lim = AsyncRateLimiter(RateLimits(max_concurrent=1))
+        lim.ABANDON_S = 0.1
+        held = await lim.acquire(1, 10.0)
+        assert await lim.acquire(1, 10.0, max_wait_s=0.05, ticket="gone") is None  # polls once, never again
+        await asyncio.sleep(0.3)
+        await lim.release(held, 1)
+        assert await lim.acquire(1, 10.0, max_wait_s=1.0, ticket="next") is not None
+        return lim.stats()
+
+    stats = asyncio.run(go())
+    assert stats["in_flight"] == 1 and stats["waiting"] == 0  # only "next" holds a slot

@@ -8,8 +8,9 @@ are answered when the core grants them (requests/min with pacing, tokens/min,
 concurrency together; see deepphy.models.limiter).
 
 Every Ray call is bounded: `acquire` waits inside the actor at most `POLL_S` and
-returns None if not yet granted (the caller simply asks again), and the caller's own
-await carries a timeout of `POLL_S + CALL_TIMEOUT_S`. `release` is sent without waiting
+returns None if not yet granted (the caller asks again with the same ticket, keeping its
+place in the FIFO queue), and the caller's own await carries a timeout of
+`POLL_S + CALL_TIMEOUT_S`. `release` is sent without waiting
 for it; a grant that is never released (a worker killed mid-request) expires after its
 lease, so concurrency slots cannot leak.
 
@@ -22,6 +23,7 @@ next call (its windows restart empty).
 from __future__ import annotations
 
 import asyncio
+import uuid
 from typing import Any
 
 import ray
@@ -40,8 +42,8 @@ class RateLimiterActor:
         self.limits = RateLimits.model_validate(limits)
         self._lim = AsyncRateLimiter(self.limits)
 
-    async def acquire(self, tokens: int, lease_s: float, max_wait_s: float = POLL_S) -> int | None:
-        return await self._lim.acquire(tokens, lease_s, max_wait_s)
+    async def acquire(self, tokens: int, lease_s: float, max_wait_s: float = POLL_S, ticket: str | None = None) -> int | None:
+        return await self._lim.acquire(tokens, lease_s, max_wait_s, ticket)
 
     async def release(self, grant: int, tokens: int | None = None) -> None:
         await self._lim.release(grant, tokens)
@@ -76,10 +78,11 @@ class RayLimiter:
         return self._actor
 
     async def acquire(self, tokens: int, lease_s: float) -> int:
+        ticket = uuid.uuid4().hex  # keeps this request's place in the queue across polls
         while True:
             try:
                 grant = await asyncio.wait_for(
-                    self._handle().acquire.remote(tokens, lease_s, POLL_S), POLL_S + CALL_TIMEOUT_S
+                    self._handle().acquire.remote(tokens, lease_s, POLL_S, ticket), POLL_S + CALL_TIMEOUT_S
                 )
             except ray.exceptions.RayActorError:
                 self._actor = None  # died: recreate on the next round

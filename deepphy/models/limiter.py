@@ -126,42 +126,75 @@ class RateLimiterCore:
         }
 
 
+class _Waiter:
+    __slots__ = ("fut", "tokens", "lease_s", "ticket", "abandon_at")
+
+    def __init__(self, fut: asyncio.Future, tokens: int, lease_s: float, ticket: str | None, abandon_at: float) -> None:
+        self.fut, self.tokens, self.lease_s, self.ticket, self.abandon_at = fut, tokens, lease_s, ticket, abandon_at
+
+
 class AsyncRateLimiter:
-    """FIFO waiters over a `RateLimiterCore`; must be used from one event loop."""
+    """FIFO waiters over a `RateLimiterCore`; must be used from one event loop.
+
+    Remote callers wait in bounded polls (`max_wait_s`) and pass the same `ticket` on
+    every poll of one request, so a poll that times out keeps its place in the queue
+    (re-queueing at the back would starve unlucky requests). A ticket not polled again
+    within `ABANDON_S` of its last poll's end is dropped (its caller is gone).
+    """
+
+    ABANDON_S = 30.0
 
     def __init__(self, limits: RateLimits, clock: Callable[[], float] = time.monotonic) -> None:
         self.core = RateLimiterCore(limits)
         self.clock = clock
-        self._waiters: deque[tuple[asyncio.Future, int, float]] = deque()
+        self._waiters: deque[_Waiter] = deque()
+        self._tickets: dict[str, _Waiter] = {}
         self._wake: asyncio.Event | None = None
         self._pump_task: asyncio.Task | None = None
 
     def _ensure_pump(self) -> None:
         loop = asyncio.get_running_loop()
         if self._pump_task is None or self._pump_task.done() or self._pump_task.get_loop() is not loop:
-            self._waiters = deque(w for w in self._waiters if w[0].get_loop() is loop)
+            self._waiters = deque(w for w in self._waiters if w.fut.get_loop() is loop)
+            self._tickets = {t: w for t, w in self._tickets.items() if w.fut.get_loop() is loop}
             self._wake = asyncio.Event()
             self._pump_task = loop.create_task(self._pump())
 
-    async def acquire(self, tokens: int, lease_s: float, max_wait_s: float | None = None) -> int | None:
-        """A grant id, or None if `max_wait_s` passed first (the caller asks again)."""
+    async def acquire(
+        self, tokens: int, lease_s: float, max_wait_s: float | None = None, ticket: str | None = None
+    ) -> int | None:
+        """A grant id, or None if `max_wait_s` passed first (the caller asks again, same ticket)."""
         self._ensure_pump()
-        fut: asyncio.Future = asyncio.get_running_loop().create_future()
-        self._waiters.append((fut, int(tokens), float(lease_s)))
-        self._wake.set()
+        waiter = self._tickets.get(ticket) if ticket is not None else None
+        horizon = self.clock() + (max_wait_s or 0.0) + self.ABANDON_S
+        if waiter is None or waiter.fut.cancelled():
+            fut: asyncio.Future = asyncio.get_running_loop().create_future()
+            waiter = _Waiter(fut, int(tokens), float(lease_s), ticket, horizon)
+            self._waiters.append(waiter)
+            if ticket is not None:
+                self._tickets[ticket] = waiter
+            self._wake.set()
+        waiter.abandon_at = max(waiter.abandon_at, horizon)
+        fut = waiter.fut
         try:
-            return await asyncio.wait_for(asyncio.shield(fut), max_wait_s)
+            grant = await asyncio.wait_for(asyncio.shield(fut), max_wait_s)
         except asyncio.TimeoutError:
-            if fut.done():
-                return fut.result()
-            fut.cancel()
-            return None
+            if not fut.done():
+                if ticket is None:
+                    fut.cancel()
+                return None  # still queued under its ticket
+            grant = fut.result()
         except asyncio.CancelledError:
             if fut.done() and not fut.cancelled():
                 self.core.release(fut.result(), 0)
             else:
                 fut.cancel()
+            if ticket is not None:
+                self._tickets.pop(ticket, None)
             raise
+        if ticket is not None:
+            self._tickets.pop(ticket, None)
+        return grant
 
     async def release(self, grant: int, tokens: int | None = None) -> None:
         self.core.release(grant, tokens)
@@ -169,7 +202,7 @@ class AsyncRateLimiter:
             self._wake.set()
 
     def stats(self) -> dict:
-        return {**self.core.stats(), "waiting": sum(1 for f, _, _ in self._waiters if not f.done())}
+        return {**self.core.stats(), "waiting": sum(1 for w in self._waiters if not w.fut.done())}
 
     async def _pump(self) -> None:
         assert self._wake is not None
@@ -177,16 +210,19 @@ class AsyncRateLimiter:
             now = self.clock()
             wait: float | None = None
             while self._waiters:
-                fut, tokens, lease_s = self._waiters[0]
-                if fut.done():  # gave up waiting
+                w = self._waiters[0]
+                if w.fut.done() or (w.ticket is not None and now > w.abandon_at):  # gave up / caller gone
                     self._waiters.popleft()
+                    w.fut.cancel()
+                    if w.ticket is not None:
+                        self._tickets.pop(w.ticket, None)
                     continue
-                d = self.core.delay(tokens, now)
+                d = self.core.delay(w.tokens, now)
                 if d > 0:
                     wait = d
                     break
                 self._waiters.popleft()
-                fut.set_result(self.core.grant(tokens, lease_s, now))
+                w.fut.set_result(self.core.grant(w.tokens, w.lease_s, now))
             self._wake.clear()
             try:
                 await asyncio.wait_for(self._wake.wait(), None if wait is None or math.isinf(wait) else wait)
