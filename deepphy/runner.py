@@ -20,6 +20,10 @@ from deepphy.envs import Environment, Task, get_env_class
 from deepphy.runs.store import RunDirError, RunStore, read_records
 
 RAY_TIMEOUT_S = 60.0
+# Ray takes 127.0.0.1 as "no address given" and advertises the machine's primary interface;
+# any other loopback address keeps the local cluster's traffic on loopback. macOS only
+# configures 127.0.0.1, so there we fall back to it.
+LOOPBACK_NODE_IP = "127.0.0.2" if sys.platform.startswith("linux") else "127.0.0.1"
 
 
 class ConfigError(ValueError):
@@ -88,7 +92,7 @@ def ensure_ray(runtime: RuntimeOptions) -> bool:
     logging.getLogger("ray._private.authentication.authentication_token_setup").setLevel(logging.ERROR)
     ray.init(
         num_cpus=runtime.num_cpus,
-        _node_ip_address="127.0.0.1",  # keep all traffic on loopback
+        _node_ip_address=LOOPBACK_NODE_IP,
         include_dashboard=False,
         object_store_memory=256 * 1024**2,
         logging_level=logging.WARNING,

@@ -26,16 +26,20 @@ def ray_cluster():
 
     import ray
 
+    from deepphy.runner import LOOPBACK_NODE_IP
+
     temp_dir = tempfile.mkdtemp(prefix="dpray", dir="/tmp")  # short: socket paths have a length limit
     context = ray.init(
         num_cpus=2,
-        _node_ip_address="127.0.0.1",
+        _node_ip_address=LOOPBACK_NODE_IP,
         include_dashboard=False,
         object_store_memory=200 * 1024**2,
         _temp_dir=temp_dir,
         logging_level=logging.WARNING,
     )
-    yield context.address_info["gcs_address"]
+    address = context.address_info["gcs_address"]
+    assert address.startswith("127."), f"the test cluster must stay on loopback, got {address}"
+    yield address
     ray.shutdown()
 
 
