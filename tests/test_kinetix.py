@@ -325,3 +325,25 @@ def test_batches_are_cut_into_few_compiled_shapes():
         assert all(n in (1, 8, 64) and real <= n for _, n, real in chunks)
         assert [start for start, _, _ in chunks] == list(np.cumsum([0] + [r for _, _, r in chunks])[:-1])
     assert _chunks(5) == [(0, 8, 5)] and _chunks(2) == [(0, 1, 1), (1, 1, 1)]
+
+
+@pytest.mark.slow
+def test_every_level_renders_with_exact_non_overlapping_labels():
+    from deepphy.envs.kinetix import render, sim
+
+    for t in KinetixEnv.tasks(KinetixOptions()):
+        state = sim.load_level(t.params["level"]).state
+        ctl = render.controls(state)
+        assert 1 <= len(ctl.motor_bindings) + len(ctl.thruster_bindings) <= 6, t.id
+        clean = render.render(state)
+        annotated, boxes = render.annotate(clean, state, ctl)
+        assert len(boxes) == sum(map(len, ctl.motor_joints)) + sum(map(len, ctl.thrusters)), t.id
+        inside = np.zeros(clean.shape[:2], bool)
+        for _, (x0, y0, x1, y1) in boxes:
+            inside[y0:y1, x0:x1] = True
+        changed = (annotated != clean).any(axis=2)
+        assert not (changed & ~inside).any(), t.id
+        for i, (_, a) in enumerate(boxes):
+            for _, b in boxes[i + 1 :]:
+                assert not (a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]), t.id
+        assert render.goal_distance_px(state) is not None, t.id

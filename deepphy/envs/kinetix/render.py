@@ -194,8 +194,8 @@ def _overlaps(a: tuple[int, int, int, int], b: tuple[int, int, int, int], margin
 def annotate(img: np.ndarray, state: Any, ctl: Controls) -> tuple[np.ndarray, list[tuple[str, tuple[int, int, int, int]]]]:
     """A copy of `img` with a label at each controllable motor and thruster.
 
-    Labels go next to their part, at the first nearby spot that neither overlaps another
-    label nor covers a motor or thruster. Returns the image and the label boxes
+    Labels go next to their part, at a nearby spot that neither overlaps another label nor
+    covers a motor or thruster, preferring empty background over the scene's shapes. Returns the image and the label boxes
     [(label, (x0, y0, x1, y1))] (x1, y1 exclusive): the image differs from `img` only
     inside them.
     """
@@ -211,9 +211,10 @@ def annotate(img: np.ndarray, state: Any, ctl: Controls) -> tuple[np.ndarray, li
     markers = [p for _, p, _ in parts]
 
     out = img.copy()
+    background = (img != 255).any(axis=2)  # pixels of the scene that a label would hide
     boxes: list[tuple[str, tuple[int, int, int, int]]] = []
     for text, p, offsets in parts:
-        chosen = None
+        best, best_cover = None, 2.0
         for dx, dy in offsets:
             centre = (p[0] + dx, p[1] + dy)
             box = _predict_box(text, centre)
@@ -221,11 +222,14 @@ def annotate(img: np.ndarray, state: Any, ctl: Controls) -> tuple[np.ndarray, li
                 continue
             if any(box[0] - 9 <= m[0] <= box[2] + 9 and box[1] - 9 <= m[1] <= box[3] + 9 for m in markers):
                 continue
-            chosen = centre
-            break
-        if chosen is None:
-            chosen = (p[0] + offsets[0][0], p[1] + offsets[0][1])
-        boxes.append((text, draw_label(out, text, chosen, scale=LABEL_SCALE, background=LABEL_BG)))
+            cover = float(background[box[1] : box[3], box[0] : box[2]].mean())
+            if cover < best_cover - 0.05:  # prefer nearer spots unless a farther one hides clearly less
+                best, best_cover = centre, cover
+            if cover < 0.02:
+                break
+        if best is None:
+            best = (p[0] + offsets[0][0], p[1] + offsets[0][1])
+        boxes.append((text, draw_label(out, text, best, scale=LABEL_SCALE, background=LABEL_BG)))
     return out, boxes
 
 
