@@ -135,7 +135,7 @@ class PhyreEnv(Environment):
         outcome = world.run(snapshot_every=15)
         t_end = outcome.steps / S.FPS
         if outcome.success:
-            feedback = f"solved: the goal held for 3 s, at t = {t_end:.1f} s"
+            feedback = f"solved: the goal holds for 3 s (decided at t = {t_end:.1f} s)"
         else:
             feedback = {
                 "at_rest": f"not solved: everything came to rest at t = {t_end:.1f} s without the goal holding",
