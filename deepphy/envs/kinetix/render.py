@@ -211,7 +211,6 @@ def annotate(img: np.ndarray, state: Any, ctl: Controls) -> tuple[np.ndarray, li
     markers = [p for _, p, _ in parts]
 
     out = img.copy()
-    background = (img != 255).any(axis=2)  # pixels of the scene that a label would hide
     boxes: list[tuple[str, tuple[int, int, int, int]]] = []
     for text, p, offsets in parts:
         best, best_cover = None, 2.0
@@ -222,7 +221,7 @@ def annotate(img: np.ndarray, state: Any, ctl: Controls) -> tuple[np.ndarray, li
                 continue
             if any(box[0] - 9 <= m[0] <= box[2] + 9 and box[1] - 9 <= m[1] <= box[3] + 9 for m in markers):
                 continue
-            cover = float(background[box[1] : box[3], box[0] : box[2]].mean())
+            cover = float((img[box[1] : box[3], box[0] : box[2]] != 255).any(axis=2).mean())  # scene hidden
             if cover < best_cover - 0.05:  # prefer nearer spots unless a farther one hides clearly less
                 best, best_cover = centre, cover
             if cover < 0.02:
