@@ -108,9 +108,6 @@ class Scheduler:
         ]
         gate = asyncio.Semaphore(self.runtime.max_in_flight)
         self._charge(sum(r.model_stats.usage.cost_usd for r in existing))
-        if self.budget_hit and todo:
-            self.failed.append(f"cost budget ${self.runtime.max_cost_usd:g} already reached "
-                               f"(${self.spent_usd:.4f} spent); raise --max-cost to continue")
 
         async def guarded(task: Task, run: int) -> None:
             async with gate:
@@ -271,6 +268,7 @@ class Scheduler:
         if limit is not None and self.spent_usd >= limit and not self.budget_hit:
             self.budget_hit = True
             self.stop_requested = True
+            self.failed.append(f"cost budget ${limit:g} reached (${self.spent_usd:.4f} spent); raise --max-cost to continue")
             log.warning("cost budget $%g reached ($%.4f spent): stopping; raise --max-cost and resume", limit, self.spent_usd)
 
     # -- history ----------------------------------------------------------------------
