@@ -48,8 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--max-in-flight", type=int, default=256, help="episodes in progress at once; default 256")
     run.add_argument("--no-progress", action="store_true", help="no live progress line")
 
-    rep = sub.add_parser("report", help="print the paper-style table of a run directory")
-    rep.add_argument("run_dir")
+    rep = sub.add_parser("report", help="print the paper-style table of one or more run directories")
+    rep.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
+                     help="run directories of one environment (e.g. VLA, WM and MOCK) for one combined table")
     fmt = rep.add_mutually_exclusive_group()
     for flag in ("json", "csv", "markdown"):
         fmt.add_argument(f"--{flag}", action="store_true", help=f"print {flag} instead of a text table")
@@ -123,11 +124,16 @@ def cmd_report(args: argparse.Namespace) -> int:
     from deepphy.runner import resolve
     from deepphy.runs.store import read_config, read_records
 
-    config = read_config(args.run_dir)
-    _, tasks, k_max = resolve(config)
-    report = build_report(config, tasks, read_records(args.run_dir), k_max)
+    reports = []
+    for run_dir in args.run_dirs:
+        config = read_config(run_dir)
+        _, tasks, k_max = resolve(config)
+        reports.append(build_report(config, tasks, read_records(run_dir), k_max))
+    envs = sorted({r["env"] for r in reports})
+    if len(envs) > 1:
+        raise UserError(f"a report combines runs of one environment; got {', '.join(envs)}")
     render = render_json if args.json else render_csv if args.csv else render_markdown if args.markdown else render_text
-    print(render(report))
+    print(render(reports))
     return 0
 
 
@@ -222,6 +228,9 @@ def main(argv: list[str] | None = None) -> int:
     except (UserError, ConfigError, RunDirError, UnknownEnvironment, UnknownModel, MissingKey, ModelsFileError) as e:
         print(f"deepphy: error: {e}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into `head` and friends
+        sys.stderr.close()
+        return 0
     except KeyboardInterrupt:
         print("deepphy: interrupted; run the same command again to resume", file=sys.stderr)
         return 130

@@ -47,6 +47,14 @@ def test_unreadable_run_dir_and_mismatched_resume_write_nothing(tmp_path, capsys
     assert "not a valid run config" in capsys.readouterr().err
 
 
+def test_report_refuses_to_mix_environments(tmp_path, capsys):
+    for name, env in (("a", "iphyre"), ("b", "pooltool")):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "config.json").write_text(json.dumps({"env": env, "runs": 1, "limit": 1}))
+    assert main(["report", str(tmp_path / "a"), str(tmp_path / "b")]) == 2
+    assert "one environment" in capsys.readouterr().err
+
+
 def test_envs_lists_iphyre(capsys):
     assert main(["envs"]) == 0
     line = next(l for l in capsys.readouterr().out.splitlines() if l.startswith("iphyre"))

@@ -7,7 +7,7 @@ import pytest
 from deepphy.config import RunConfig
 from deepphy.envs import Task
 from deepphy.metrics import figures as F
-from deepphy.metrics.report import build_report, render_csv, render_markdown, render_text
+from deepphy.metrics.report import build_report, render_csv, render_markdown, render_text, table
 from deepphy.runs.records import AttemptRecord, StepRecord
 
 
@@ -93,3 +93,16 @@ def test_report_counts_add_up_per_run_and_group():
     for render in (render_text, render_markdown, render_csv):
         out = render(report)
         assert "Att.10" in out and "16.7" in out  # mean Att.1 = 1/6
+
+
+def test_combined_report_labels_rows_by_setting():
+    tasks = [Task(env="kinetix", id=t, group=g) for t, g in [("a", "S"), ("b", "M")]]
+    records = episode_records("a", 0, 1, group="S") + episode_records("b", 0, None, group="M")
+    vla = build_report(RunConfig(env="iphyre", runs=1), tasks, records, k_max=10)
+    wm = build_report(RunConfig(env="iphyre", runs=1, format="wm", env_options={"annotate": False}), tasks, [], k_max=10)
+    header, rows = table([vla, wm])
+    assert header[:3] == ["setting", "group", "n"]
+    assert [r[:2] for r in rows] == [["mock VLA", "all"], ["mock VLA", "M"], ["mock VLA", "S"],
+                                     ["mock WM annotate=False", "all"], ["mock WM annotate=False", "M"],
+                                     ["mock WM annotate=False", "S"]]
+    assert rows[0][3] == "50.0" and rows[3][3] == "0.0"

@@ -224,8 +224,9 @@ class Scheduler:
                     invalid_reason = result.invalid_reason
                 if result.done or result.observation is None:
                     break
+                # The scene the agent saw at this decision; the newest scene is the observation itself.
                 recent.append(PastStep(step=step, action=canonical, feedback=result.feedback,
-                                       frame=result.key_frames[0] if result.key_frames else None))
+                                       frame=observation.images[0]))
                 observation = result.observation
         finally:
             self.load[worker_index] -= 1

@@ -121,75 +121,103 @@ def _num(m: float | None, s: float | None, digits: int = 2) -> str:
     return f"{m:.{digits}f}" + (f"±{s:.{digits}f}" if s else "")
 
 
-def table(report: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
-    """Header and rows: one row for all tasks, then one per group."""
-    k_max = report["max_attempts"]
-    header = ["tasks", "n"] + [f"Att.{k}" for k in range(1, k_max + 1)] + ["AvgAtt", "Solved", "Invalid"]
-    overall = report["overall"]
-    extra_steps = "success_within_steps" in overall["mean"]
-    if extra_steps:
-        header += [f"Shot{k}" for k in overall["mean"]["success_within_steps"]] + ["AvgShots"]
-    if "auccess" in overall["mean"]:
-        header.append("AUCCESS")
-    if "stars" in overall["mean"]:
-        header += ["Stars", "Stars/lvl", "Stars/done", "1*", "2*", "3*"]
-    if any(r["model_errors"] or r["retries"] for r in overall["per_run"]):
-        header += ["ModelErr", "Retries"]
-    show_errors = "ModelErr" in header
-    if any(r["cost_usd"] or r["input_tokens"] for r in overall["per_run"]):
-        header += ["TokensIn", "TokensOut", "Cost$"]
-    show_cost = "Cost$" in header
+def setting(report: dict[str, Any]) -> str:
+    """What distinguishes one run directory's rows from another's in a combined table."""
+    options = ",".join(f"{k}={v}" for k, v in sorted(report["env_options"].items()))
+    return f"{report['model']} {report['format'].upper()}" + (f" {options}" if options else "")
 
-    def row(name: str, sec: dict[str, Any]) -> list[str]:
+
+def table(reports: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
+    """Header and rows: per report, one row for all tasks, then one per group. Reports of
+    several run directories (same environment) share one table, labelled by their setting."""
+    k_max = max(r["max_attempts"] for r in reports)
+    means = [r["overall"]["mean"] for r in reports]
+    per_runs = [x for r in reports for x in r["overall"]["per_run"]]
+    extra_steps = next((m["success_within_steps"] for m in means if "success_within_steps" in m), None)
+    show_auccess = any("auccess" in m for m in means)
+    show_stars = any("stars" in m for m in means)
+    show_errors = any(x["model_errors"] or x["retries"] for x in per_runs)
+    show_cost = any(x["cost_usd"] or x["input_tokens"] for x in per_runs)
+    combined = len(reports) > 1
+    header = (["setting"] if combined else []) + ["group", "n"] + [f"Att.{k}" for k in range(1, k_max + 1)]
+    header += ["AvgAtt", "Solved", "Invalid"]
+    if extra_steps:
+        header += [f"Shot{k}" for k in extra_steps] + ["AvgShots"]
+    if show_auccess:
+        header.append("AUCCESS")
+    if show_stars:
+        header += ["Stars", "Stars/lvl", "Stars/done", "1*", "2*", "3*"]
+    if show_errors:
+        header += ["ModelErr", "Retries"]
+    if show_cost:
+        header += ["TokensIn", "TokensOut", "Cost$"]
+
+    def row(report: dict[str, Any], name: str, sec: dict[str, Any]) -> list[str]:
         m, s = sec["mean"], sec["std"]
-        cells = [name, str(sec["tasks"])]
-        cells += [_pct(m["success_at"][i], s["success_at"][i]) for i in range(k_max)]
-        cells += [_num(m["avg_attempts"], s["avg_attempts"]), _num(m["solved"], s["solved"], 1), _num(m["invalid_attempts"], s["invalid_attempts"], 1)]
+        k = report["max_attempts"]
+        cells = ([setting(report)] if combined else []) + [name, str(sec["tasks"])]
+        cells += [_pct(m["success_at"][i], s["success_at"][i]) if i < k else "" for i in range(k_max)]
+        cells += [_num(m["avg_attempts"], s["avg_attempts"]), _num(m["solved"], s["solved"], 1),
+                  _num(m["invalid_attempts"], s["invalid_attempts"], 1)]
         if extra_steps:
-            cells += [_pct(m["success_within_steps"][k], s["success_within_steps"][k]) for k in m["success_within_steps"]]
-            cells.append(_num(m["avg_steps"], s["avg_steps"]))
-        if "auccess" in m:
-            cells.append(_pct(m["auccess"], s["auccess"]))
-        if "stars" in m:
-            st, sd = m["stars"], s["stars"]
-            cells += [_num(st["total"], sd["total"], 1), _num(st["mean_all"], sd["mean_all"]), _num(st["mean_completed"], sd["mean_completed"])]
-            cells += [_num(st["levels_with"][k], sd["levels_with"][k], 1) for k in ("1", "2", "3")]
+            within = m.get("success_within_steps", {})
+            cells += [_pct(within[c], s["success_within_steps"][c]) if c in within else "-" for c in extra_steps]
+            cells.append(_num(m.get("avg_steps"), s.get("avg_steps")))
+        if show_auccess:
+            cells.append(_pct(m.get("auccess"), s.get("auccess")))
+        if show_stars:
+            st, sd = m.get("stars"), s.get("stars")
+            if st is None:
+                cells += ["-"] * 6
+            else:
+                cells += [_num(st["total"], sd["total"], 1), _num(st["mean_all"], sd["mean_all"]),
+                          _num(st["mean_completed"], sd["mean_completed"])]
+                cells += [_num(st["levels_with"][c], sd["levels_with"][c], 1) for c in ("1", "2", "3")]
         if show_errors:
             cells += [_num(m["model_errors"], s["model_errors"], 1), _num(m["retries"], s["retries"], 1)]
         if show_cost:
-            cells += [_num(m["input_tokens"], s["input_tokens"], 0), _num(m["output_tokens"], s["output_tokens"], 0), _num(m["cost_usd"], s["cost_usd"], 4)]
+            cells += [_num(m["input_tokens"], s["input_tokens"], 0), _num(m["output_tokens"], s["output_tokens"], 0),
+                      _num(m["cost_usd"], s["cost_usd"], 4)]
         return cells
 
-    rows = [row("all", overall)]
-    for g, sec in report.get("groups", {}).items():
-        rows.append(row(g, sec))
+    rows = []
+    for report in reports:
+        rows.append(row(report, "all", report["overall"]))
+        rows += [row(report, g, sec) for g, sec in report.get("groups", {}).items()]
     return header, rows
 
 
-def render_text(report: dict[str, Any]) -> str:
-    header, rows = table(report)
+def _as_list(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [reports] if isinstance(reports, dict) else list(reports)
+
+
+def render_text(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
+    reports = _as_list(reports)
+    header, rows = table(reports)
     widths = [max(len(header[i]), *(len(r[i]) for r in rows)) for i in range(len(header))]
     fmt = lambda cells: "  ".join(c.rjust(w) for c, w in zip(cells, widths))  # noqa: E731
-    done = sum(r["tasks"] - r["unfinished"] for r in report["overall"]["per_run"])
-    total = report["overall"]["tasks"] * report["runs"]
-    title = (
-        f"{report['env']} · model {report['model']} · format {report['format'].upper()} · "
-        f"{report['runs']} run(s), seed {report['seed']} · episodes complete {done}/{total}"
-    )
-    lines = [title, "success rate (%) within k attempts, mean±std over runs", fmt(header), fmt(["-" * w for w in widths])]
+    lines = []
+    for report in reports:
+        done = sum(r["tasks"] - r["unfinished"] for r in report["overall"]["per_run"])
+        total = report["overall"]["tasks"] * report["runs"]
+        lines.append(
+            f"{report['env']} · {setting(report)} · {report['runs']} run(s), seed {report['seed']} · "
+            f"episodes complete {done}/{total}"
+        )
+    lines += ["success rate (%) within k attempts, mean±std over runs", fmt(header), fmt(["-" * w for w in widths])]
     lines += [fmt(r) for r in rows]
     return "\n".join(lines)
 
 
-def render_markdown(report: dict[str, Any]) -> str:
-    header, rows = table(report)
+def render_markdown(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
+    header, rows = table(_as_list(reports))
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
     return "\n".join(lines)
 
 
-def render_csv(report: dict[str, Any]) -> str:
-    header, rows = table(report)
+def render_csv(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
+    header, rows = table(_as_list(reports))
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(header)
@@ -197,5 +225,6 @@ def render_csv(report: dict[str, Any]) -> str:
     return buf.getvalue()
 
 
-def render_json(report: dict[str, Any]) -> str:
-    return json.dumps(report, indent=2)
+def render_json(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
+    """One report as an object; several as a list."""
+    return json.dumps(reports if isinstance(reports, dict) or len(reports) > 1 else reports[0], indent=2)
