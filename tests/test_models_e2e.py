@@ -123,12 +123,18 @@ def test_faulty_server_run_equals_the_mock_run(server, models_file, mock_run, tm
     assert FAKE_KEY not in stream.getvalue() and FAKE_KEY not in table
 
 
-def test_prose_replies_are_invalid_attempts_with_the_text_kept(server, models_file, tmp_path):
+def test_prose_replies_are_invalid_attempts_and_image_cuts_are_recorded(server, models_file, tmp_path):
     server.reset()
     server.configure(faults={"rate": 0.2, "kinds": ["prose"]})
     config = RunConfig(**{**LOCAL.model_dump(), "runs": 1})
-    assert evaluate(config, tmp_path, RUNTIME, client_options={"models_file": models_file()}).complete
+    f = models_file(max_images=1)  # also: only the newest image goes; the cut is recorded
+    assert evaluate(config, tmp_path, RUNTIME, client_options={"models_file": f}).complete
     records = assert_one_record_per_attempt(tmp_path)
+    # attempt k shows the key frames of attempts 1..k-1 (none for an invalid one) + 2 observation images
+    frames = {r.key: len(r.key_frames) for r in records}
+    for r in records:
+        shown = sum(frames[(r.task, r.run, k)] for k in range(1, r.attempt)) + 2
+        assert r.model_stats.images_dropped == shown - 1
     prose = [r for r in records if r.steps[0].raw_output == PROSE_REPLY]
     assert len(prose) == server.stats(arrivals=False)["faults"]["prose"] > 0
     assert all(r.invalid and not r.success and r.steps[0].action is None for r in prose)

@@ -200,6 +200,7 @@ class Scheduler:
                 self._charge(response.usage.cost_usd)
                 stats.usage = stats.usage + response.usage
                 stats.retries += response.retries
+                stats.images_dropped += response.images_dropped
                 prediction, action_text = split_reply(cfg.format, response.text)
                 try:
                     action = observation.action_space.parse(action_text)

@@ -43,6 +43,7 @@ class ModelStats(BaseModel):
     usage: Usage = Field(default_factory=Usage)
     retries: int = 0  # transport retries, those of requests that failed for good included
     model_errors: int = 0  # requests that failed for good; each re-queued the attempt
+    images_dropped: int = 0  # oldest images left out of requests to meet the provider's image limit
 
 
 class AttemptRecord(BaseModel):
