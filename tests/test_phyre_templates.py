@@ -32,6 +32,8 @@ SOLUTIONS: dict[int, tuple[int, float, float, float]] = {
     20: (0, 128.0, 76.8, 9.5),  # Cell: 18, Radius: 2
     21: (0, 230.4, 230.4, 24.5),  # Cell: 5, Radius: 4
     22: (0, 230.4, 230.4, 24.5),  # Cell: 5, Radius: 4
+    23: (9, 230.4, 179.2, 17.0),  # Cell: 10, Radius: 3
+    24: (1, 128.0, 76.8, 9.5),  # Cell: 18, Radius: 2
 }
 
 TEMPLATES = sorted(templates())
