@@ -84,8 +84,9 @@ def main() -> None:
             import ray
 
             from deepphy.actors.model_worker import make_model_worker
+            from deepphy.runner import LOOPBACK_NODE_IP
 
-            ray.init(num_cpus=2, _node_ip_address="127.0.0.1", include_dashboard=False,
+            ray.init(num_cpus=2, _node_ip_address=LOOPBACK_NODE_IP, include_dashboard=False,
                      object_store_memory=200 * 1024**2, logging_level=logging.WARNING,
                      _temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"))
             worker = make_model_worker("bench", models_file=models)

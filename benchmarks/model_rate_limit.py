@@ -71,6 +71,8 @@ def main() -> None:
     os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
     import ray
 
+    from deepphy.runner import LOOPBACK_NODE_IP
+
     from deepphy.actors.model_worker import make_model_worker
     from deepphy.actors.rate_limiter import ensure_limiter
     from deepphy.models import model_config
@@ -84,7 +86,7 @@ def main() -> None:
             "send_context": True, "timeouts": {"request_s": 30},
             "rate_limits": {"requests_per_min": a.rpm, "window_margin_s": a.margin},
         }]}, f)
-    ray.init(num_cpus=2, _node_ip_address="127.0.0.1", include_dashboard=False,
+    ray.init(num_cpus=2, _node_ip_address=LOOPBACK_NODE_IP, include_dashboard=False,
              object_store_memory=200 * 1024**2, logging_level=logging.WARNING, _temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"))
     try:
         limiter = ensure_limiter(model_config("bench", models))

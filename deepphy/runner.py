@@ -115,7 +115,8 @@ def evaluate(
     from deepphy.actors.metrics_actor import make_metrics_actor
     from deepphy.actors.model_worker import make_model_worker
     from deepphy.actors.scheduler import Scheduler
-    from deepphy.models import make_client
+    from deepphy.actors.rate_limiter import ensure_limiter
+    from deepphy.models import make_client, model_config
 
     runtime = runtime or RuntimeOptions()
     env_cls, tasks, k_max = resolve(config)
@@ -135,10 +136,13 @@ def evaluate(
             make_env_worker(config.env, config.env_options, name=f"{prefix}/env{i}", resource=runtime.env_resource)
             for i in range(n_workers)
         ]
+        model_cfg = model_config(config.model, (client_options or {}).get("models_file"))
+        # The driver owns the endpoint's limiter, so a model worker's restart keeps its windows.
+        limiter = ensure_limiter(model_cfg) if model_cfg is not None else None
         model_worker = make_model_worker(config.model, name=f"{prefix}/model", **(client_options or {}))
         total = len(tasks) * config.runs
         metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics")
-        actors = [*env_workers, model_worker, metrics]
+        actors = [*env_workers, model_worker, metrics, *([limiter] if limiter is not None else [])]
         ray.get(metrics.add.remote(existing, resumed=True), timeout=RAY_TIMEOUT_S)
         scheduler = Scheduler(config, runtime, env_cls, tasks, store, env_workers, model_worker, metrics, k_max)
         asyncio.run(_drive(scheduler, existing, metrics, runtime.progress, stream))

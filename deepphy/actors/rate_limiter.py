@@ -1,7 +1,8 @@
 """One rate limiter per model endpoint, shared by every model worker of the cluster.
 
 Design: a named async Ray actor (`num_cpus=0`, so it never waits for a CPU) per limiter
-key (`ModelConfig.limiter_key`, default the model name), in the job's namespace, created
+key (`ModelConfig.limiter_key`, default the model name), in the fixed namespace
+`deepphy` (so concurrent runs on one cluster share an endpoint's limits), created
 with `get_if_exists=True` so whichever process asks first creates it and everyone else
 gets the same one. It wraps `AsyncRateLimiter`: callers queue FIFO inside the actor and
 are answered when the core grants them (requests/min with pacing, tokens/min,
@@ -34,6 +35,7 @@ from deepphy.models.limiter import AsyncRateLimiter
 POLL_S = 5.0  # longest wait inside one acquire call
 CALL_TIMEOUT_S = 30.0  # slack on top of the wait for one actor call
 NAME_PREFIX = "deepphy-limiter-"
+NAMESPACE = "deepphy"  # cluster-wide: every run's workers find the same limiter
 
 
 @ray.remote(num_cpus=0, max_concurrency=10_000)
@@ -60,7 +62,9 @@ def ensure_limiter(config: ModelConfig):
     """The endpoint's limiter actor, created if it does not exist yet (None if no limits)."""
     if not config.rate_limits.enabled:
         return None
-    return RateLimiterActor.options(name=limiter_name(config.limiter_key), get_if_exists=True).remote(
+    return RateLimiterActor.options(
+        name=limiter_name(config.limiter_key), namespace=NAMESPACE, get_if_exists=True
+    ).remote(
         config.rate_limits.model_dump()
     )
 
