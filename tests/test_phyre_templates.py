@@ -51,7 +51,9 @@ def test_stable_without_a_ball(template):
     for v in variants[:: 1 if verified else 10]:
         scene = variant_scene(template, v)
         for o in scene.objects:
-            assert S.inside_scene(o, margin=-0.5), (template, v, o)
+            # Static ramps may run into the walls (their corners are cut off by the frame);
+            # a dynamic object may start at most a few px past an edge (pushed back at once).
+            assert S.inside_scene(o, margin=-5.0 if o.dynamic else -3 * S.BAR_T), (template, v, o)
         out = S.simulate(scene)
         assert not out.success, (template, v)
         assert out.reason != "exploded" and out.max_speed < 600, (template, v, out.max_speed)

@@ -13,7 +13,8 @@ def build(rng):
     cx = cw / 2 + u(rng, 3, 25)
     cup = jar(mx(cx, side), 0, cw, ch, "purple")
     lid_len = cw + u(rng, 8, 24)
-    lid = bar(mx(cx + u(rng, -4, 4), side), ch + BAR_T / 2 + 0.5, lid_len, 0.0, "gray")
+    lid_x = max(cx + u(rng, -4, 4), lid_len / 2 + 1)  # inside the scene
+    lid = bar(mx(lid_x, side), ch + BAR_T / 2 + 0.5, lid_len, 0.0, "gray")
     rx0 = cx + lid_len / 2 + u(rng, 4, 15)
     ry0 = ch + u(rng, 12, 30)
     rx1 = u(rng, rx0 + 60, min(W - 10, rx0 + 150))
