@@ -37,16 +37,10 @@ class MetricsImpl:
             "status": self.status,
             "episodes_done": len(finished),
             "episodes_total": self.episodes_total,
-            "attempts": len(self.records),
+            **F.totals(eps),
             "attempts_per_s": new / elapsed if elapsed > 0 else 0.0,
             "solved": sum(e.solved for e in eps),
             "success_rate": sum(e.solved for e in finished) / len(finished) if finished else 0.0,
-            "invalid_attempts": sum(e.invalid for e in eps),
-            "model_errors": sum(e.model_errors for e in eps),
-            "retries": sum(e.retries for e in eps),
-            "input_tokens": sum(e.input_tokens for e in eps),
-            "output_tokens": sum(e.output_tokens for e in eps),
-            "cost_usd": sum(e.cost_usd for e in eps),
             "elapsed_s": elapsed,
         }
 

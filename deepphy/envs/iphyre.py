@@ -23,7 +23,6 @@ import functools
 import json
 import math
 import os
-import re
 from typing import Any, Literal, Sequence
 
 import cv2
@@ -41,6 +40,7 @@ from deepphy.envs.base import (
     Task,
 )
 from deepphy.envs.images import Image, draw_label, stack_frames
+from deepphy.envs.parsing import first_json_array
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")  # iphyre imports pygame, which greets on stdout
 
@@ -61,9 +61,6 @@ class IPhyrePlan(Action):
     clicks: tuple[Click, ...]
 
 
-_FENCE = re.compile(r"```(?:json)?", re.I)
-
-
 class IPhyreSpace(ActionSpace):
     """Plans over `num_blocks` eliminable blocks, each removal at a time in [0, 15)."""
 
@@ -71,7 +68,9 @@ class IPhyreSpace(ActionSpace):
     num_blocks: int
 
     def parse(self, text: str) -> IPhyrePlan:
-        raw = _first_json_array(_FENCE.sub(" ", text))
+        raw = first_json_array(text)
+        if raw is None:
+            raise InvalidAction('no JSON array of {"time", "index"} objects found')
         clicks = []
         for item in raw:
             if not isinstance(item, dict):
@@ -105,28 +104,6 @@ class IPhyreSpace(ActionSpace):
     def format(self, action: Action) -> str:
         assert isinstance(action, IPhyrePlan)
         return json.dumps([{"time": c.time, "index": c.index} for c in action.clicks])
-
-
-def _first_json_array(text: str) -> list[Any]:
-    """The first balanced [...] in `text` that is valid JSON."""
-    start = text.find("[")
-    while start != -1:
-        depth = 0
-        for end in range(start, len(text)):
-            if text[end] == "[":
-                depth += 1
-            elif text[end] == "]":
-                depth -= 1
-                if depth == 0:
-                    try:
-                        value = json.loads(text[start : end + 1])
-                    except json.JSONDecodeError:
-                        break
-                    if isinstance(value, list):
-                        return value
-                    break
-        start = text.find("[", start + 1)
-    raise InvalidAction("no JSON array of {\"time\", \"index\"} objects found")
 
 
 # Colours (RGB) of the rendering; the prompt's legend names them.

@@ -74,6 +74,19 @@ def episodes(records: Iterable[AttemptRecord]) -> list[Episode]:
     return out
 
 
+def totals(eps: Sequence[Episode]) -> dict[str, float]:
+    """Counters summed over episodes: attempts, invalid attempts, model errors, usage."""
+    return {
+        "attempts": sum(e.attempts for e in eps),
+        "invalid_attempts": sum(e.invalid for e in eps),
+        "model_errors": sum(e.model_errors for e in eps),
+        "retries": sum(e.retries for e in eps),
+        "input_tokens": sum(e.input_tokens for e in eps),
+        "output_tokens": sum(e.output_tokens for e in eps),
+        "cost_usd": sum(e.cost_usd for e in eps),
+    }
+
+
 def success_at(eps: Sequence[Episode], k: int, n_tasks: int | None = None) -> float:
     """Fraction of tasks solved within k attempts (cumulative; the paper's Att. k / Pass@k)."""
     n = n_tasks if n_tasks is not None else len(eps)

@@ -30,13 +30,7 @@ def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, env: str, run: 
         "unfinished": n_tasks - len(finished),
         "success_at": [F.success_at(eps, k, n_tasks) for k in range(1, k_max + 1)],
         "avg_attempts": F.average_attempts(eps),
-        "attempts": sum(e.attempts for e in eps),
-        "invalid_attempts": sum(e.invalid for e in eps),
-        "model_errors": sum(e.model_errors for e in eps),
-        "retries": sum(e.retries for e in eps),
-        "input_tokens": sum(e.input_tokens for e in eps),
-        "output_tokens": sum(e.output_tokens for e in eps),
-        "cost_usd": sum(e.cost_usd for e in eps),
+        **F.totals(eps),
     }
     if env in STEP_CHECKPOINTS:
         out["success_within_steps"] = {str(k): F.success_within_steps(eps, k, n_tasks) for k in STEP_CHECKPOINTS[env]}

@@ -5,12 +5,12 @@ per thruster. Pure Python: no JAX, so a model process can rebuild the space from
 from __future__ import annotations
 
 import json
-import re
 from typing import Any, Literal, Sequence
 
 import numpy as np
 
 from deepphy.envs.base import Action, ActionSpace, InvalidAction
+from deepphy.envs.parsing import first_json_array
 
 MOTOR_VALUES = (0, 1, 2)  # off, forward, reverse
 THRUSTER_VALUES = (0, 1)  # off, on
@@ -24,7 +24,6 @@ class KinetixAction(Action):
     thrusters: tuple[int, ...]
 
 
-_FENCE = re.compile(r"```[a-z]*", re.I)
 
 
 class KinetixSpace(ActionSpace):
@@ -40,7 +39,11 @@ class KinetixSpace(ActionSpace):
         return [f"M{i}" for i in range(self.num_motors)] + [f"T{i}" for i in range(self.num_thrusters)]
 
     def parse(self, text: str) -> KinetixAction:
-        values = _first_json_list(_FENCE.sub(" ", text))
+        values = first_json_array(text)
+        if values is None:
+            raise InvalidAction("no JSON list of integers found (expected e.g. [1, 0])")
+        if any(isinstance(v, (list, dict)) for v in values):
+            raise InvalidAction("the action must be a flat list of integers")
         if len(values) != self.length:
             raise InvalidAction(
                 f"expected a list of {self.length} integers ({', '.join(self.labels()) or 'none'}), "
@@ -70,27 +73,3 @@ class KinetixSpace(ActionSpace):
     def format(self, action: Action) -> str:
         assert isinstance(action, KinetixAction)
         return json.dumps(list(action.motors) + list(action.thrusters))
-
-
-def _first_json_list(text: str) -> list[Any]:
-    """The first balanced [...] in `text` that parses as a flat JSON list."""
-    start = text.find("[")
-    while start != -1:
-        depth = 0
-        for end in range(start, len(text)):
-            if text[end] == "[":
-                depth += 1
-            elif text[end] == "]":
-                depth -= 1
-                if depth == 0:
-                    try:
-                        value = json.loads(text[start : end + 1])
-                    except json.JSONDecodeError:
-                        break
-                    if isinstance(value, list):
-                        if any(isinstance(v, (list, dict)) for v in value):
-                            raise InvalidAction("the action must be a flat list of integers")
-                        return value
-                    break
-        start = text.find("[", start + 1)
-    raise InvalidAction("no JSON list of integers found (expected e.g. [1, 0])")
