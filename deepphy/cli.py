@@ -11,6 +11,10 @@ from pydantic import ValidationError
 from deepphy.config import DEFAULT_OUT, RunConfig, RuntimeOptions
 
 
+# env -> "module:function(argv) -> exit status" of its solvability search
+SOLVERS = {"phyre": "deepphy.envs.phyre.solve:main"}
+
+
 class UserError(Exception):
     """Anything the user can fix. Printed as one line; exit status 2."""
 
@@ -63,6 +67,11 @@ def build_parser() -> argparse.ArgumentParser:
     watch.add_argument("--interval", type=float, default=2.0, help="seconds between snapshots; default 2")
     watch.add_argument("--once", action="store_true", help="print one snapshot per live run and exit")
     watch.add_argument("--json", action="store_true", help="one JSON object per line (for dashboards)")
+
+    solve = sub.add_parser("solve", help="search an environment's tasks for solving actions (PHYRE)")
+    solve.add_argument("--env", required=True, choices=sorted(SOLVERS))
+    solve.add_argument("solver_args", nargs=argparse.REMAINDER,
+                       help="the solver's own arguments, e.g. `report --out FILE` (see `deepphy solve --env phyre report -h`)")
 
     show = sub.add_parser("show", help="write the images a model would see for one task")
     show.add_argument("--env", required=True)
@@ -181,6 +190,13 @@ def cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_solve(args: argparse.Namespace) -> int:
+    import importlib
+
+    module, function = SOLVERS[args.env].split(":")
+    return getattr(importlib.import_module(module), function)(args.solver_args or ["--help"])
+
+
 def cmd_watch(args: argparse.Namespace) -> int:
     import json
     import time
@@ -212,7 +228,8 @@ def cmd_watch(args: argparse.Namespace) -> int:
         time.sleep(args.interval)
 
 
-COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_show, "watch": cmd_watch}
+COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_show, "watch": cmd_watch,
+            "solve": cmd_solve}
 
 
 def main(argv: list[str] | None = None) -> int:

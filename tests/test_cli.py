@@ -108,3 +108,11 @@ def test_kill_9_then_resume_equals_uninterrupted(ray_cluster, tmp_path):
     reports = [subprocess.run([sys.executable, "-m", "deepphy.cli", "report", "--json", str(p)],
                               capture_output=True, timeout=120, check=True).stdout for p in (cut, tmp_path / "full")]
     assert json.loads(reports[0])["overall"] == json.loads(reports[1])["overall"]
+
+
+def test_solve_reports_phyre_solvability(tmp_path, capsys):
+    out = tmp_path / "solvability.json"
+    assert main(["solve", "--env", "phyre", "report", "--limit", "2", "--jobs", "1", "--out", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert report["summary"]["tasks"] == 2 and report["summary"]["solvable_in_continuous_space"] == 2
+    assert all(t["solvable"] for t in report["tasks"])

@@ -24,7 +24,10 @@ class Image(BaseModel):
 
     @classmethod
     def from_array(cls, name: str, caption: str, rgb: np.ndarray) -> "Image":
-        ok, buf = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR))
+        # Level 6: ~40% smaller than OpenCV's default 1 for ~1 ms more; run directories hold
+        # tens of thousands of these key frames.
+        bgr = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR)
+        ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 6])
         if not ok:
             raise ValueError(f"could not encode image {name!r}")
         return cls(name=name, caption=caption, png=buf.tobytes())
