@@ -123,6 +123,8 @@ class IPhyreEnv(Environment):
         super().__init__(options)
         self._sim: Any = None
         self._task: Task | None = None
+        # Every attempt starts from the same scene: render and encode it once per task.
+        self._initial: dict[str, Observation] = {}
 
     @classmethod
     def tasks(cls, options) -> list[Task]:
@@ -135,10 +137,12 @@ class IPhyreEnv(Environment):
     def reset(self, task: Task) -> Observation:
         self._task = task
         self._centres = _block_centres(task.id)
+        if task.id in self._initial:
+            return self._initial[task.id]  # step() builds its own fresh simulator
         self._sim = _fresh_sim(task.id)
         scene = self.render()
         annotated = self.render(labels=True)
-        return Observation(
+        self._initial[task.id] = Observation(
             images=[
                 Image.from_array("scene", "The scene at t = 0 s.", scene),
                 Image.from_array("annotated", "The same scene with each gray block's index.", annotated),
@@ -146,6 +150,7 @@ class IPhyreEnv(Environment):
             text=self._describe(),
             action_space=IPhyreSpace(num_blocks=len(self._centres)),
         )
+        return self._initial[task.id]
 
     def step(self, action: Action) -> StepResult:
         assert isinstance(action, IPhyrePlan) and self._sim is not None

@@ -79,6 +79,8 @@ class PhyreEnv(Environment):
         super().__init__(options)
         self._task: Task | None = None
         self._scene: S.Scene | None = None
+        # Every attempt starts from the same scene: render and encode it once per task.
+        self._initial: dict[str, Observation] = {}
 
     @classmethod
     def tasks(cls, options: PhyreOptions) -> list[Task]:
@@ -110,9 +112,11 @@ class PhyreEnv(Environment):
     def reset(self, task: Task) -> Observation:
         self._task = task
         self._scene = scene_of(task)
+        if task.id in self._initial:
+            return self._initial[task.id]
         img = self.render_scene(self._scene)
         grid = self.draw_grid(img.copy())
-        return Observation(
+        self._initial[task.id] = Observation(
             images=[
                 Image.from_array("scene", "The initial scene.", img),
                 Image.from_array("grid", f"The same scene with the numbered {self.options.grid}x{self.options.grid} "
@@ -121,6 +125,7 @@ class PhyreEnv(Environment):
             text=describe_goal(self._scene),
             action_space=self.space,
         )
+        return self._initial[task.id]
 
     def step(self, action: Action) -> StepResult:
         assert isinstance(action, PhyreAction) and self._scene is not None
