@@ -332,7 +332,8 @@ def test_fault_injection_is_deterministic_from_the_seed(server):
     reqs = [iphyre_request(i % 8, run=i // 8) for i in range(24)]
 
     async def go():
-        client = client_from_config(local_config(server.url, "openai", retry={"max_retries": 6, "base_delay_s": 0.0}))
+        # 20 retries: at a 50% fault rate, failing for good would take 21 faults in a row.
+        client = client_from_config(local_config(server.url, "openai", retry={"max_retries": 20, "base_delay_s": 0.0}))
         try:
             return [(await client.complete(r)).retries for r in reqs]
         finally:
