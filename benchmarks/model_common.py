@@ -4,11 +4,29 @@ from __future__ import annotations
 
 import bisect
 import json
+import os
+import tempfile
 import urllib.request
+
+import yaml
 
 from deepphy.envs import get_env_class
 from deepphy.models import ModelRequest, RequestContext
 from deepphy.prompts import PromptFormat, build_messages, get_prompt
+
+
+def bench_endpoint(latency: float, **model_fields) -> tuple[object, str, str]:
+    """Start the local model server with `latency` and write a models file whose entry
+    `bench` points at it. Returns (server process, base URL, models file path)."""
+    from deepphy.models.server import spawn
+
+    proc, url = spawn("--latency", str(latency))
+    models = os.path.join(tempfile.mkdtemp(prefix="dpbench"), "models.yaml")
+    entry = {"name": "bench", "provider": "openai", "model": "deepphy-mock", "base_url": url + "/v1",
+             "send_context": True, **model_fields}
+    with open(models, "w") as f:
+        yaml.safe_dump({"models": [entry]}, f)
+    return proc, url, models
 
 
 def iphyre_requests(n: int, *, images: bool = True) -> list[ModelRequest]:

@@ -20,12 +20,10 @@ import sys
 import tempfile
 import time
 
-import yaml
-
 sys.path.insert(0, os.path.dirname(__file__))
-from model_common import iphyre_requests, server_stats  # noqa: E402
+from model_common import bench_endpoint, iphyre_requests, server_stats  # noqa: E402
 
-from deepphy.models.server import spawn  # noqa: E402
+from deepphy.runner import LOOPBACK_NODE_IP, quiet_environment  # noqa: E402
 
 RAY_TIMEOUT_S = 120
 
@@ -57,18 +55,11 @@ def main() -> None:
     ap.add_argument("--direct", action="store_true", help="call the client in this process, not via a Ray model worker")
     a = ap.parse_args()
 
-    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+    quiet_environment()
     from deepphy.models import client_from_config, model_config
 
-    proc, url = spawn("--latency", str(a.latency))
-    tmp = tempfile.mkdtemp(prefix="dpbench")
-    models = os.path.join(tmp, "models.yaml")
-    with open(models, "w") as f:
-        yaml.safe_dump({"models": [{
-            "name": "bench", "provider": "openai", "model": "deepphy-mock", "base_url": url + "/v1",
-            "send_context": True, "timeouts": {"request_s": 60},  # no rate_limits: nothing to enforce
-        }]}, f)
+    # no rate_limits: nothing to enforce
+    proc, url, models = bench_endpoint(a.latency, timeouts={"request_s": 60})
     requests = iphyre_requests(512, images=not a.no_images)
     ray = None
     try:
@@ -84,7 +75,6 @@ def main() -> None:
             import ray
 
             from deepphy.actors.model_worker import make_model_worker
-            from deepphy.runner import LOOPBACK_NODE_IP
 
             ray.init(num_cpus=2, _node_ip_address=LOOPBACK_NODE_IP, include_dashboard=False,
                      object_store_memory=200 * 1024**2, logging_level=logging.WARNING,

@@ -19,12 +19,10 @@ import tempfile
 import time
 import urllib.request
 
-import yaml
-
 sys.path.insert(0, os.path.dirname(__file__))
-from model_common import iphyre_requests, max_in_window, server_stats  # noqa: E402
+from model_common import bench_endpoint, iphyre_requests, max_in_window, server_stats  # noqa: E402
 
-from deepphy.models.server import spawn  # noqa: E402
+from deepphy.runner import LOOPBACK_NODE_IP, quiet_environment  # noqa: E402
 
 RAY_TIMEOUT_S = 120
 
@@ -67,25 +65,17 @@ def main() -> None:
     ap.add_argument("--margin", type=float, default=1.0, help="limiter window margin (s)")
     a = ap.parse_args()
 
-    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+    quiet_environment()
     import ray
-
-    from deepphy.runner import LOOPBACK_NODE_IP
 
     from deepphy.actors.model_worker import make_model_worker
     from deepphy.actors.rate_limiter import ensure_limiter
     from deepphy.models import model_config
 
-    proc, url = spawn("--latency", str(a.latency))
-    tmp = tempfile.mkdtemp(prefix="dpbench")
-    models = os.path.join(tmp, "models.yaml")
-    with open(models, "w") as f:
-        yaml.safe_dump({"models": [{
-            "name": "bench", "provider": "openai", "model": "deepphy-mock", "base_url": url + "/v1",
-            "send_context": True, "timeouts": {"request_s": 30},
-            "rate_limits": {"requests_per_min": a.rpm, "window_margin_s": a.margin},
-        }]}, f)
+    proc, url, models = bench_endpoint(
+        a.latency, timeouts={"request_s": 30},
+        rate_limits={"requests_per_min": a.rpm, "window_margin_s": a.margin},
+    )
     ray.init(num_cpus=2, _node_ip_address=LOOPBACK_NODE_IP, include_dashboard=False,
              object_store_memory=200 * 1024**2, logging_level=logging.WARNING, _temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"))
     try:

@@ -9,15 +9,13 @@ decisions, with prompts built, but no Ray, no run store and no key-frame files.
 from __future__ import annotations
 
 import argparse
-import asyncio
 import sys
 import tempfile
 import time
 
 from deepphy.config import RunConfig, RuntimeOptions
-from deepphy.envs import seeded_rng
 from deepphy.models import RequestContext
-from deepphy.models.mock import MockModel, mock_action_text
+from deepphy.models.mock import mock_action_text
 from deepphy.prompts import PastAttempt, build_messages, get_prompt, split_reply
 from deepphy.runner import ensure_ray, evaluate, resolve
 from deepphy.runs.store import read_records

@@ -24,7 +24,6 @@ import pickle
 import tempfile
 import threading
 from dataclasses import dataclass
-from functools import partial
 from importlib import metadata
 from pathlib import Path
 from typing import Any

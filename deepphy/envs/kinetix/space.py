@@ -5,7 +5,7 @@ per thruster. Pure Python: no JAX, so a model process can rebuild the space from
 from __future__ import annotations
 
 import json
-from typing import Any, Literal, Sequence
+from typing import Literal, Sequence
 
 import numpy as np
 

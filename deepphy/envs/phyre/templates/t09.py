@@ -1,7 +1,6 @@
 """09: knock a bar off an obstacle. A green bar lies balanced on a black pillar; it must
 fall to the floor."""
 
-import math
 
 from deepphy.envs.phyre.scene import BAR_T, W, Scene, bar, box
 from deepphy.envs.phyre.templates import Skip, Template, u

@@ -3,7 +3,7 @@ the hole of a black platform, drops into the hole and plugs it just before the g
 ball falling from higher up gets there; the green ball must reach the floor."""
 
 from deepphy.envs.phyre.scene import W, Scene, ball, bar
-from deepphy.envs.phyre.templates import Template, mx, sign, u
+from deepphy.envs.phyre.templates import Template, sign, u
 
 
 def build(rng):
