@@ -18,7 +18,7 @@ from deepphy.prompts import PromptFormat, build_messages, get_prompt
 def bench_endpoint(latency: float, **model_fields) -> tuple[object, str, str]:
     """Start the local model server with `latency` and write a models file whose entry
     `bench` points at it. Returns (server process, base URL, models file path)."""
-    from deepphy.models.server import spawn
+    from deepphy.testing.model_server import spawn
 
     proc, url = spawn("--latency", str(latency))
     models = os.path.join(tempfile.mkdtemp(prefix="dpbench"), "models.yaml")

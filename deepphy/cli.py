@@ -129,15 +129,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from deepphy.metrics.report import build_report, render_csv, render_json, render_markdown, render_text
-    from deepphy.runner import resolve
-    from deepphy.runs.store import read_config, read_records
+    from deepphy.metrics.report import render_csv, render_json, render_markdown, render_text, report_of
 
-    reports = []
-    for run_dir in args.run_dirs:
-        config = read_config(run_dir)
-        _, tasks, k_max = resolve(config)
-        reports.append(build_report(config, tasks, read_records(run_dir), k_max))
+    reports = [report_of(run_dir) for run_dir in args.run_dirs]
     envs = sorted({r["env"] for r in reports})
     if len(envs) > 1:
         raise UserError(f"a report combines runs of one environment; got {', '.join(envs)}")

@@ -16,7 +16,7 @@ from deepphy.models import (
 )
 from deepphy.models.config import MissingKey, ModelsFile
 from deepphy.models.mock import MockModel
-from deepphy.models.server import FAULT_KINDS, PROSE_REPLY, ServerConfig, ServerThread
+from deepphy.testing.model_server import FAULT_KINDS, PROSE_REPLY, ServerConfig, ServerThread
 from deepphy.models.wire import decode_context, encode_context, parse_retry_after
 from deepphy.prompts import PromptFormat
 from models_support import iphyre_request, local_config

@@ -13,7 +13,7 @@ import yaml
 
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.metrics.report import build_report, render_text
-from deepphy.models.server import PROSE_REPLY, ServerConfig, ServerThread
+from deepphy.testing.model_server import PROSE_REPLY, ServerConfig, ServerThread
 from deepphy.runner import evaluate, resolve
 from deepphy.runs.store import read_records
 

@@ -12,7 +12,7 @@ import yaml
 from deepphy.models import ModelError, client_from_config
 from deepphy.models.config import RateLimits
 from deepphy.models.limiter import LocalLimiter, RateLimiterCore
-from deepphy.models.server import ServerConfig, ServerThread
+from deepphy.testing.model_server import ServerConfig, ServerThread
 from models_support import iphyre_request, local_config
 
 RAY_TIMEOUT_S = 120

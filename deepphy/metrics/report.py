@@ -100,6 +100,16 @@ def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[Att
     return report
 
 
+def report_of(run_dir) -> dict[str, Any]:
+    """The report of one run directory, as `deepphy report --json` prints it."""
+    from deepphy.runner import resolve
+    from deepphy.runs.store import read_config, read_records
+
+    config = read_config(run_dir)
+    _, tasks, k_max = resolve(config)
+    return build_report(config, tasks, read_records(run_dir), k_max)
+
+
 # -- rendering --------------------------------------------------------------------------
 
 

@@ -1,6 +1,6 @@
 """A local model server with real provider wire formats that answers with the MOCK policy.
 
-    python -m deepphy.models.server --port 8765 [--latency 0.5] [--fault-rate 0.2] [--seed 0]
+    python -m deepphy.testing.model_server --port 8765 [--latency 0.5] [--fault-rate 0.2] [--seed 0]
 
 Routes (real request/response JSON, status codes and headers):
 - POST /v1/chat/completions                    OpenAI Chat Completions (no streaming)
@@ -538,12 +538,12 @@ class ServerThread:
 
 
 def spawn(*args: str, timeout_s: float = 60.0):
-    """Start `python -m deepphy.models.server --port 0 ARGS` in a subprocess.
+    """Start `python -m deepphy.testing.model_server --port 0 ARGS` in a subprocess.
     Returns (Popen, base URL); the caller terminates it."""
     import subprocess
 
     proc = subprocess.Popen(
-        [sys.executable, "-m", "deepphy.models.server", "--port", "0", *args],
+        [sys.executable, "-m", "deepphy.testing.model_server", "--port", "0", *args],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
         env={**os.environ, "PYGAME_HIDE_SUPPORT_PROMPT": "1"},
     )
@@ -559,7 +559,7 @@ def spawn(*args: str, timeout_s: float = 60.0):
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(prog="python -m deepphy.models.server", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m deepphy.testing.model_server", description=__doc__.split("\n\n")[0])
     ap.add_argument("--host", default="127.0.0.1")
     ap.add_argument("--port", type=int, default=8765, help="0: any free port (printed)")
     ap.add_argument("--latency", type=float, default=0.0, help="seconds before each answer")
