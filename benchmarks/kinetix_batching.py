@@ -28,7 +28,7 @@ def main() -> None:
     args = ap.parse_args()
 
     t0 = time.perf_counter()
-    from deepphy.envs.kinetix import KinetixEnv, KinetixOptions
+    from deepphy.envs.kinetix.env import KinetixEnv, KinetixOptions
     from deepphy.envs.kinetix import sim as ksim
 
     tasks = KinetixEnv.tasks(KinetixOptions())

@@ -12,7 +12,7 @@ import yaml
 
 from deepphy.envs import get_env_class
 from deepphy.models import ModelRequest, RequestContext
-from deepphy.prompts import PromptFormat, build_messages, get_prompt
+from deepphy.prompts import PromptFormat, build_messages
 
 
 def bench_endpoint(latency: float, **model_fields) -> tuple[object, str, str]:
@@ -34,7 +34,7 @@ def iphyre_requests(n: int, *, images: bool = True) -> list[ModelRequest]:
     cls = get_env_class("iphyre")
     env = cls()
     tasks = cls.tasks(env.options)[:8]
-    prompt = get_prompt("iphyre")
+    prompt = cls.spec.load_prompt()
     base = []
     for task in tasks:
         obs = env.reset(task)

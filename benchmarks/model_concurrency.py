@@ -75,11 +75,12 @@ def main() -> None:
             import ray
 
             from deepphy.actors.model_worker import make_model_worker
+            from deepphy.envs import get_spec
 
             ray.init(num_cpus=2, _node_ip_address=LOOPBACK_NODE_IP, include_dashboard=False,
                      object_store_memory=200 * 1024**2, logging_level=logging.WARNING,
                      _temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"))
-            worker = make_model_worker("bench", models_file=models)
+            worker = make_model_worker("bench", get_spec("iphyre"), models_file=models)
             ray.get(worker.complete.remote(requests[0]), timeout=RAY_TIMEOUT_S)  # started
 
             async def call(req):

@@ -69,6 +69,7 @@ def main() -> None:
     import ray
 
     from deepphy.actors.model_worker import make_model_worker
+    from deepphy.envs import get_spec
     from deepphy.actors.rate_limiter import ensure_limiter
     from deepphy.models import model_config
 
@@ -80,7 +81,7 @@ def main() -> None:
              object_store_memory=200 * 1024**2, logging_level=logging.WARNING, _temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"))
     try:
         limiter = ensure_limiter(model_config("bench", models))
-        workers = [make_model_worker("bench", models_file=models) for _ in range(a.workers)]
+        workers = [make_model_worker("bench", get_spec("iphyre"), models_file=models) for _ in range(a.workers)]
         requests = iphyre_requests(64)
         # warm up: every worker started and connected, then the server's log starts empty
         ray.get([w.complete.remote(requests[i]) for i, w in enumerate(workers)], timeout=RAY_TIMEOUT_S)

@@ -1,7 +1,9 @@
 """Attempts per second: the full Ray pipeline with MOCK vs a plain single-process loop.
 
-The plain loop makes the same environment calls (reset, parse, step) and the same MOCK
-decisions, with prompts built, but no Ray, no run store and no key-frame files.
+The plain loop runs the very same attempt protocol (`deepphy.protocol.run_attempt`: the
+prompts, MOCK's decisions, parsing, the environment calls, the records) in one process,
+one attempt after another, with prompts and key frames kept in memory instead of a run
+directory.
 
     uv run python benchmarks/throughput.py [--env iphyre] [--runs 3] [--limit N]
 """
@@ -9,47 +11,33 @@ decisions, with prompts built, but no Ray, no run store and no key-frame files.
 from __future__ import annotations
 
 import argparse
+import asyncio
 import sys
 import tempfile
 import time
 
+from deepphy.agents import MockModel
 from deepphy.config import RunConfig, RuntimeOptions
-from deepphy.models import RequestContext
-from deepphy.models.mock import mock_action_text
-from deepphy.prompts import PastAttempt, build_messages, get_prompt, split_reply
+from deepphy.protocol import LocalEnv, MemoryArtifacts, run_attempt
 from deepphy.runner import ensure_ray, evaluate, resolve
+from deepphy.runs.records import episode_finished
 from deepphy.runs.store import read_records
 
 
-def plain_loop(config: RunConfig) -> tuple[int, float]:
-    env_cls, tasks, k_max = resolve(config)
-    env = env_cls(env_cls.Options(**config.env_options))
-    prompt = get_prompt(config.env)
+async def plain_loop(config: RunConfig) -> tuple[int, float]:
+    spec, tasks, k_max = resolve(config)
+    env_cls = spec.load()
+    env = LocalEnv(env_cls(env_cls.Options(**config.env_options)))
+    prompt, model, artifacts = spec.load_prompt(), MockModel(), MemoryArtifacts()
     attempts = 0
     start = time.perf_counter()
     for run in range(config.runs):
         for task in tasks:
-            history: list[PastAttempt] = []
-            tried: list[str] = []
-            for attempt in range(1, k_max + 1):
-                obs = env.reset(task)
-                for step in range(1, env_cls.max_steps + 1):
-                    build_messages(prompt, config.format, task, obs, history)
-                    ctx = RequestContext(env=config.env, task_id=task.id, run=run, attempt=attempt, step=step,
-                                         seed=config.seed, format=config.format,
-                                         action_space=obs.action_space.model_dump(mode="json"), tried=tried)
-                    _, text = split_reply(config.format, mock_action_text(ctx))
-                    action = obs.action_space.parse(text)
-                    result = env.step(action)
-                    tried.append(obs.action_space.format(action))
-                    if result.done or result.observation is None:
-                        break
-                    obs = result.observation
-                attempts += 1
-                if result.success:
-                    break
-                history.append(PastAttempt(attempt=attempt, actions=tried[-1:], outcome=result.feedback,
-                                           key_frames=result.key_frames))
+            records = []
+            while not episode_finished(records, k_max):
+                records.append(await run_attempt(spec, prompt, config, task, run, len(records) + 1, records,
+                                                 env, model, artifacts))
+            attempts += len(records)
     return attempts, time.perf_counter() - start
 
 
@@ -62,7 +50,7 @@ def main() -> None:
     args = p.parse_args()
     config = RunConfig(env=args.env, runs=args.runs, limit=args.limit)
 
-    attempts, seconds = plain_loop(config)
+    attempts, seconds = asyncio.run(plain_loop(config))
     print(f"plain loop (1 process):   {attempts} attempts in {seconds:6.1f} s = {attempts / seconds:7.1f} attempts/s")
 
     runtime = RuntimeOptions(num_cpus=args.num_cpus, progress=False)

@@ -11,10 +11,6 @@ from pydantic import ValidationError
 from deepphy.config import DEFAULT_OUT, RunConfig, RuntimeOptions
 
 
-# env -> "module:function(argv) -> exit status" of its solvability search
-SOLVERS = {"phyre": "deepphy.envs.phyre.solve:main"}
-
-
 class UserError(Exception):
     """Anything the user can fix. Printed as one line; exit status 2."""
 
@@ -68,10 +64,10 @@ def build_parser() -> argparse.ArgumentParser:
     watch.add_argument("--once", action="store_true", help="print one snapshot per live run and exit")
     watch.add_argument("--json", action="store_true", help="one JSON object per line (for dashboards)")
 
-    solve = sub.add_parser("solve", help="search an environment's tasks for solving actions (PHYRE)")
-    solve.add_argument("--env", required=True, choices=sorted(SOLVERS))
+    solve = sub.add_parser("solve", help="search an environment's tasks for solving actions (its solvability report)")
+    solve.add_argument("--env", required=True, help="an environment with a solver (see `deepphy envs`)")
     solve.add_argument("solver_args", nargs=argparse.REMAINDER,
-                       help="the solver's own arguments, e.g. `report --out FILE` (see `deepphy solve --env phyre report -h`)")
+                       help="the solver's own arguments (see `deepphy solve --env ENV --help`)")
 
     show = sub.add_parser("show", help="write the images a model would see for one task")
     show.add_argument("--env", required=True)
@@ -109,14 +105,14 @@ def cmd_run(args: argparse.Namespace) -> int:
             address=args.address, num_cpus=args.num_cpus, env_workers=args.env_workers,
             env_resource=args.env_resource,
             max_in_flight=args.max_in_flight, progress=not args.no_progress, max_cost_usd=args.max_cost,
+            # absolute: model workers may run in another directory
+            models_file=str(Path(args.models_file).resolve()) if args.models_file else None,
         )
     except ValidationError as e:
         err = e.errors()[0]
         where = ".".join(map(str, err["loc"]))
         raise UserError(f"{where + ': ' if where else ''}{err['msg'].removeprefix('Value error, ')}") from None
-    # absolute: model workers may run in another directory
-    client_options = {"models_file": str(Path(args.models_file).resolve())} if args.models_file else None
-    outcome = evaluate(config, args.out, runtime, client_options=client_options)
+    outcome = evaluate(config, args.out, runtime)
     print(f"run directory: {outcome.out} ({outcome.episodes_done}/{outcome.episodes_total} episodes complete, "
           f"{outcome.new_records} new attempt records)")
     if not outcome.complete:
@@ -143,27 +139,27 @@ def cmd_report(args: argparse.Namespace) -> int:
 def cmd_envs(args: argparse.Namespace) -> int:
     from collections import Counter
 
-    from deepphy.envs import ENVIRONMENTS, get_env_class
+    from deepphy.envs import get_spec, specs
 
     if args.tasks:
-        cls = get_env_class(args.tasks)
+        cls = get_spec(args.tasks).load()
         for t in cls.tasks(cls.Options()):
             print(f"{t.id}\t{t.group}")
         return 0
     print(f"{'env':10} {'title':12} {'tasks':>6}  {'planning':11} {'K':>3} {'steps':>5}  groups")
-    for name in ENVIRONMENTS:
-        cls = get_env_class(name)
+    for name, spec in specs().items():
+        cls = spec.load()
         tasks = cls.tasks(cls.Options())
         groups = Counter(t.group for t in tasks if t.group)
-        print(f"{name:10} {cls.title:12} {len(tasks):6d}  {cls.planning.value:11} {cls.max_attempts:3d} "
-              f"{cls.max_steps:5d}  {', '.join(f'{g} {n}' for g, n in groups.items())}")
+        print(f"{name:10} {spec.title:12} {len(tasks):6d}  {spec.planning.value:11} {spec.max_attempts:3d} "
+              f"{spec.max_steps:5d}  {', '.join(f'{g} {n}' for g, n in groups.items())}")
     return 0
 
 
 def cmd_show(args: argparse.Namespace) -> int:
-    from deepphy.envs import get_env_class
+    from deepphy.envs import get_spec
 
-    cls = get_env_class(args.env)
+    cls = get_spec(args.env).load()
     try:
         options = cls.Options(**_env_options(args.env_option))
     except ValidationError as e:
@@ -185,10 +181,13 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
-    import importlib
+    from deepphy.envs import get_spec, specs
 
-    module, function = SOLVERS[args.env].split(":")
-    return getattr(importlib.import_module(module), function)(args.solver_args or ["--help"])
+    solver = get_spec(args.env).load_solver()
+    if solver is None:
+        with_solver = ", ".join(n for n, s in specs().items() if s.solver) or "none"
+        raise UserError(f"{args.env} has no solver (environments with one: {with_solver})")
+    return solver(args.solver_args or ["--help"])
 
 
 def cmd_watch(args: argparse.Namespace) -> int:
@@ -198,7 +197,8 @@ def cmd_watch(args: argparse.Namespace) -> int:
     import ray
 
     from deepphy.config import RuntimeOptions
-    from deepphy.runner import ensure_ray, format_progress
+    from deepphy.metrics.live import format_progress
+    from deepphy.runner import ensure_ray
 
     ensure_ray(RuntimeOptions(address=args.address))
     seen = False

@@ -6,7 +6,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from deepphy.prompts.base import PromptFormat
+from deepphy.chat import PromptFormat
 
 DEFAULT_OUT = "runs/demo"
 
@@ -30,10 +30,12 @@ class RunConfig(BaseModel):
 
     @model_validator(mode="after")
     def _known_names(self) -> "RunConfig":
-        from deepphy.envs import ENVIRONMENTS, UnknownEnvironment
+        from deepphy.envs import UnknownEnvironment, get_spec
 
-        if self.env not in ENVIRONMENTS:
-            raise ValueError(str(UnknownEnvironment(self.env)))
+        try:
+            get_spec(self.env)
+        except UnknownEnvironment as e:
+            raise ValueError(str(e)) from None
         return self
 
 
@@ -52,3 +54,4 @@ class RuntimeOptions(BaseModel):
     model_timeout_s: float = Field(900.0, gt=0)  # one model call, retries included
     attempt_retries: int = Field(3, ge=0)  # re-runs of an attempt whose worker died
     max_cost_usd: float | None = Field(None, gt=0)  # stop, resumably, once the run's model cost reaches this
+    models_file: str | None = None  # YAML of model endpoints (absolute: workers may run elsewhere)

@@ -1,5 +1,5 @@
-"""One entry point for an evaluation: resolve the config, open the run store, start Ray
-and the actors, drive the scheduler with a live progress view, and clean up."""
+"""One entry point for an evaluation: resolve the config, connect to Ray, open the run
+store, start the actors, drive the scheduler with a live progress view, and clean up."""
 
 from __future__ import annotations
 
@@ -9,14 +9,15 @@ import os
 import sys
 import time
 import uuid
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
 from pydantic import ValidationError
 
 from deepphy.config import RunConfig, RuntimeOptions
-from deepphy.envs import Environment, Task, get_env_class
+from deepphy.envs import EnvSpec, Task, get_spec
+from deepphy.metrics.live import format_progress
 from deepphy.runs.store import RunDirError, RunStore, read_records
 
 RAY_TIMEOUT_S = 60.0
@@ -36,16 +37,19 @@ class RunOutcome:
     episodes_total: int
     episodes_done: int
     new_records: int
-    unfinished: list[str]
+    unfinished: list[str]  # episodes left for a resume: model or worker failures, the budget
+    errored: list[str] = field(default_factory=list)  # attempts that raised (see errors.jsonl)
+    worker_stats: list[dict[str, int]] = field(default_factory=list)  # per environment worker
 
     @property
     def complete(self) -> bool:
         return self.episodes_done == self.episodes_total
 
 
-def resolve(config: RunConfig) -> tuple[type[Environment], list[Task], int]:
-    """(environment class, task list, attempts per task) for a config, or ConfigError."""
-    env_cls = get_env_class(config.env)
+def resolve(config: RunConfig) -> tuple[EnvSpec, list[Task], int]:
+    """(environment spec, task list, attempts per task) for a config, or ConfigError."""
+    spec = get_spec(config.env)
+    env_cls = spec.load()
     try:
         options = env_cls.Options(**config.env_options)
     except ValidationError as e:
@@ -64,7 +68,7 @@ def resolve(config: RunConfig) -> tuple[type[Environment], list[Task], int]:
         tasks = tasks[: config.limit]
     if not tasks:
         raise ConfigError("the task selection is empty")
-    return env_cls, tasks, config.max_attempts or env_cls.max_attempts
+    return spec, tasks, config.max_attempts or spec.max_attempts
 
 
 def quiet_environment() -> None:
@@ -100,27 +104,23 @@ def ensure_ray(runtime: RuntimeOptions) -> bool:
     return True
 
 
-def evaluate(
-    config: RunConfig,
-    out: str | Path,
-    runtime: RuntimeOptions | None = None,
-    *,
-    client_options: dict[str, Any] | None = None,
-    stream=sys.stderr,
-) -> RunOutcome:
-    """Run (or resume) an evaluation into `out`. Raises ConfigError / RunDirError for user errors."""
+def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None = None, *,
+             stream=sys.stderr) -> RunOutcome:
+    """Run (or resume) an evaluation into `out`. Raises ConfigError / RunDirError and the
+    models' errors (unknown model, missing key) for user errors, before writing anything."""
     import ray
 
     from deepphy.actors.env_worker import make_env_worker
     from deepphy.actors.metrics_actor import make_metrics_actor
     from deepphy.actors.model_worker import make_model_worker
-    from deepphy.actors.scheduler import Scheduler
     from deepphy.actors.rate_limiter import ensure_limiter
-    from deepphy.models import make_client, model_config
+    from deepphy.agents import endpoint_config, make_agent
+    from deepphy.scheduler import Scheduler
 
     runtime = runtime or RuntimeOptions()
-    env_cls, tasks, k_max = resolve(config)
-    make_client(config.model, **(client_options or {}))  # unknown model: fail before writing anything
+    spec, tasks, k_max = resolve(config)
+    endpoint = endpoint_config(config.model, runtime.models_file)
+    make_agent(config.model, runtime.models_file)  # a missing key fails here, before anything is written
     store = RunStore.create_or_resume(out, config)
     started_ray = False
     actors: list[Any] = []
@@ -133,26 +133,29 @@ def evaluate(
         # metrics actor (ray.util.list_named_actors) and poll its snapshot.
         prefix = f"deepphy/{uuid.uuid4().hex[:8]}"
         env_workers = [
-            make_env_worker(config.env, config.env_options, name=f"{prefix}/env{i}", resource=runtime.env_resource)
+            make_env_worker(spec, config.env_options, name=f"{prefix}/env{i}", resource=runtime.env_resource,
+                            log_path=store.log_path(f"env{i}"))
             for i in range(n_workers)
         ]
-        model_cfg = model_config(config.model, (client_options or {}).get("models_file"))
         # The driver owns the endpoint's limiter, so a model worker's restart keeps its windows.
-        limiter = ensure_limiter(model_cfg) if model_cfg is not None else None
-        model_worker = make_model_worker(config.model, name=f"{prefix}/model", **(client_options or {}))
+        limiter = ensure_limiter(endpoint) if endpoint is not None else None
+        model_worker = make_model_worker(config.model, spec, name=f"{prefix}/model", models_file=runtime.models_file)
         total = len(tasks) * config.runs
         metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics")
         actors = [*env_workers, model_worker, metrics, *([limiter] if limiter is not None else [])]
-        ray.get(metrics.add.remote(existing, resumed=True), timeout=RAY_TIMEOUT_S)
-        scheduler = Scheduler(config, runtime, env_cls, tasks, store, env_workers, model_worker, metrics, k_max)
-        asyncio.run(_drive(scheduler, existing, metrics, runtime.progress, stream))
+        ray.get(metrics.add.remote([r.summary() for r in existing], resumed=True), timeout=RAY_TIMEOUT_S)
+        scheduler = Scheduler(config, runtime, spec, tasks, store, env_workers, model_worker, metrics, k_max)
+        asyncio.run(_drive(scheduler, existing, env_workers, metrics, runtime, stream))
         snap = ray.get(metrics.snapshot.remote(), timeout=RAY_TIMEOUT_S)
+        worker_stats = ray.get([w.stats.remote() for w in env_workers], timeout=RAY_TIMEOUT_S)
         return RunOutcome(
             out=Path(out),
             episodes_total=total,
             episodes_done=snap["episodes_done"],
             new_records=snap["attempts"] - len(existing),
             unfinished=scheduler.failed,
+            errored=scheduler.errored,
+            worker_stats=worker_stats,
         )
     finally:
         store.close()
@@ -181,11 +184,15 @@ def _check_unique(records: Sequence[Any], out: str | Path) -> None:
         seen.add(r.key)
 
 
-async def _drive(scheduler, existing, metrics, progress: bool, stream) -> None:
-    work = asyncio.ensure_future(scheduler.run(existing))
-    view = asyncio.ensure_future(_progress(metrics, stream)) if progress else None
+async def _drive(scheduler, existing, env_workers, metrics, runtime: RuntimeOptions, stream) -> None:
+    """Warm the workers up, then run the scheduler, with the progress view alongside."""
+    phase = ["starting environment workers (the first run on a machine compiles kernels)"]
+    view = asyncio.ensure_future(_progress(scheduler, metrics, phase, stream)) if runtime.progress else None
     try:
-        await work
+        await asyncio.wait_for(asyncio.gather(*(w.warm_up.remote(scheduler.tasks) for w in env_workers)),
+                               timeout=runtime.step_timeout_s)
+        phase[0] = "running"
+        await scheduler.run(existing)
     finally:
         if view is not None:
             view.cancel()
@@ -193,40 +200,29 @@ async def _drive(scheduler, existing, metrics, progress: bool, stream) -> None:
                 await view
             except asyncio.CancelledError:
                 pass
-            await _print_snapshot(metrics, stream, final=True)
+            await _print_snapshot(scheduler, metrics, phase[0], stream, final=True)
 
 
-async def _progress(metrics, stream) -> None:
+async def _progress(scheduler, metrics, phase: list[str], stream) -> None:
     tty = stream.isatty()
     last_line = 0.0
     while True:
         await asyncio.sleep(0.5 if tty else 1.0)
         if tty or time.time() - last_line >= 10:
-            await _print_snapshot(metrics, stream, final=False)
+            await _print_snapshot(scheduler, metrics, phase[0], stream, final=False)
             last_line = time.time()
 
 
-async def _print_snapshot(metrics, stream, final: bool) -> None:
+async def _print_snapshot(scheduler, metrics, phase: str, stream, final: bool) -> None:
     try:
+        # The driver's own counters go to the metrics actor, so `deepphy watch` sees them too.
+        metrics.update.remote({**scheduler.activity(), "phase": phase})
         snap = await asyncio.wait_for(metrics.snapshot.remote(), timeout=10)
     except Exception:  # noqa: BLE001 - progress is best effort
         return
     line = format_progress(snap)
     if stream.isatty():
-        stream.write("\r" + line.ljust(100) + ("\n" if final else ""))
+        stream.write("\r\x1b[2K" + line + ("\n" if final else ""))
     else:
         stream.write(line + "\n")
     stream.flush()
-
-
-def format_progress(s: dict[str, Any]) -> str:
-    line = (
-        f"episodes {s['episodes_done']}/{s['episodes_total']} · attempts {s['attempts']} "
-        f"({s['attempts_per_s']:.1f}/s) · solved {s['solved']} ({100 * s['success_rate']:.1f}% of finished) · "
-        f"invalid {s['invalid_attempts']}"
-    )
-    if s["model_errors"] or s["retries"]:
-        line += f" · model errors {s['model_errors']} · retries {s['retries']}"
-    if s["input_tokens"]:
-        line += f" · tokens {s['input_tokens']}/{s['output_tokens']} · ${s['cost_usd']:.4f}"
-    return line + f" · {s['elapsed_s']:.0f}s"

@@ -15,6 +15,9 @@ os.environ.setdefault("RAY_AUTH_MODE", "disabled")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")  # see deepphy.runner.quiet_environment
 os.environ.setdefault("DEEPPHY_CACHE_DIR", os.path.join(tempfile.gettempdir(), "deepphy-test-cache"))
+# Ray workers must import test-only packages (tests/toy_env) as the tests do.
+TESTS = os.path.dirname(os.path.abspath(__file__))
+os.environ["PYTHONPATH"] = os.pathsep.join(p for p in [TESTS, os.environ.get("PYTHONPATH", "")] if p)
 
 RAY_TIMEOUT_S = 120
 

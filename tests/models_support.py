@@ -6,7 +6,8 @@ import functools
 
 from deepphy.envs import get_env_class
 from deepphy.models import ModelConfig, ModelRequest, RequestContext
-from deepphy.prompts import PastAttempt, PromptFormat, build_messages, get_prompt
+from deepphy.envs import get_spec
+from deepphy.prompts import PastAttempt, PromptFormat, build_messages
 
 
 @functools.lru_cache(maxsize=None)
@@ -34,7 +35,7 @@ def iphyre_request(
     for k in range(history_frames):
         frame = obs.images[k % len(obs.images)].model_copy(update={"name": f"past{k}", "caption": f"past frame {k}"})
         history.append(PastAttempt(attempt=k + 1, actions=["[]"], outcome="failed.", key_frames=[frame]))
-    messages = build_messages(get_prompt("iphyre"), fmt, task, obs, history)
+    messages = build_messages(get_spec("iphyre").load_prompt(), fmt, task, obs, history)
     ctx = RequestContext(
         env="iphyre", task_id=task.id, run=run, attempt=attempt, step=1, seed=seed, format=fmt,
         action_space=obs.action_space.model_dump(mode="json"), tried=tried or [],

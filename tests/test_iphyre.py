@@ -5,7 +5,8 @@ import re
 import numpy as np
 import pytest
 
-from deepphy.envs import InvalidAction, get_env_class, seeded_rng
+from deepphy.envs import InvalidAction, get_env_class
+from deepphy.seeding import seeded_rng
 from deepphy.envs.iphyre import Click, IPhyrePlan, IPhyreSpace
 
 Env = get_env_class("iphyre")

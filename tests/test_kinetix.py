@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from deepphy.envs import ActionSpace, InvalidAction, get_env_class
-from deepphy.envs.kinetix import KinetixAction, KinetixEnv, KinetixOptions, KinetixSpace
+from deepphy.envs.kinetix.env import KinetixEnv, KinetixOptions
+from deepphy.envs.kinetix.space import KinetixAction, KinetixSpace
 
 ROOT = Path(__file__).resolve().parents[1]
 CACHE = Path(tempfile.gettempdir()) / "deepphy-test-cache"
@@ -190,9 +191,10 @@ def test_controls_follow_the_levels_bindings():
 
 
 def test_prompts_state_legend_syntax_and_example():
-    from deepphy.prompts import PastStep, PromptFormat, build_messages, get_prompt
+    from deepphy.envs import get_spec
+    from deepphy.prompts import PastStep, PromptFormat, build_messages
 
-    prompt = get_prompt("kinetix")
+    prompt = get_spec("kinetix").load_prompt()
     for annotate in (True, False):
         t = task("m_h7_car_flip")
         obs = KinetixEnv(KinetixOptions(annotate=annotate)).reset(t)

@@ -31,7 +31,7 @@ def test_success_at_k_is_cumulative_and_hand_computed():
     # 4 tasks: solved at 1, at 3, at 10, never.
     records = (episode_records("a", 0, 1) + episode_records("b", 0, 3) + episode_records("c", 0, 10)
                + episode_records("d", 0, None))
-    eps = F.episodes(records)
+    eps = F.episodes(records, 10)
     assert [F.success_at(eps, k) for k in (1, 2, 3, 9, 10)] == [0.25, 0.25, 0.5, 0.5, 0.75]
     assert F.average_attempts(eps) == pytest.approx((1 + 3 + 10) / 3)
     # Denominator is the task set, not the episodes seen so far.
@@ -39,16 +39,16 @@ def test_success_at_k_is_cumulative_and_hand_computed():
 
 
 def test_average_attempts_none_when_nothing_solved():
-    assert F.average_attempts(F.episodes(episode_records("a", 0, None))) is None
+    assert F.average_attempts(F.episodes(episode_records("a", 0, None), 10)) is None
 
 
 def test_auccess_excludes_invalid_attempts():
     # Solved at attempt 3 after two invalid attempts: 1 valid attempt to solve -> s_k = 1 for all k.
-    eps = F.episodes(episode_records("a", 0, 3, invalid_at=(1, 2)))
+    eps = F.episodes(episode_records("a", 0, 3, invalid_at=(1, 2)), 10)
     assert eps[0].invalid == 2
     assert F.auccess(eps) == pytest.approx(1.0)
     # Solved at the 2nd valid attempt: s_1 = 0, s_k = 1 for k >= 2.
-    eps = F.episodes(episode_records("a", 0, 2))
+    eps = F.episodes(episode_records("a", 0, 2), 10)
     w = [math.log(k + 1) - math.log(k) for k in range(1, 101)]
     assert F.auccess(eps) == pytest.approx(sum(w[1:]) / sum(w))
 
@@ -56,14 +56,14 @@ def test_auccess_excludes_invalid_attempts():
 def test_stars_figures():
     records = [rec("a", 0, 1, success=True, stars=3), rec("b", 0, 1, success=True, stars=1),
                rec("c", 0, 1, success=False, stars=0)]
-    s = F.stars(F.episodes(records))
+    s = F.stars(F.episodes(records, 10))
     assert (s.total, s.mean_all, s.mean_completed) == (4, 4 / 3, 2.0)
     assert s.levels_with == {1: 1, 2: 0, 3: 1}
 
 
 def test_success_within_steps():
     records = [rec("a", 0, 1, success=True, steps=2), rec("b", 0, 1, success=True, steps=7), rec("c", 0, 1, steps=15)]
-    eps = F.episodes(records)
+    eps = F.episodes(records, 10)
     assert [F.success_within_steps(eps, k) for k in (1, 3, 6, 9, 15)] == [0, 1 / 3, 1 / 3, 2 / 3, 2 / 3]
     assert F.average_steps(eps) == 4.5
 
@@ -106,3 +106,50 @@ def test_combined_report_labels_rows_by_setting():
                                      ["mock WM annotate=False", "all"], ["mock WM annotate=False", "M"],
                                      ["mock WM annotate=False", "S"]]
     assert rows[0][3] == "50.0" and rows[3][3] == "0.0"
+
+
+# -- live metrics (what the metrics actor serves to progress views) ---------------------
+
+
+def test_live_metrics_snapshot_counts_finished_episodes_and_rates():
+    from deepphy.metrics.live import LiveMetrics
+
+    now = [100.0]
+    live = LiveMetrics(episodes_total=4, max_attempts=3, clock=lambda: now[0])
+    # Resumed from disk: task a solved at attempt 2 (finished), task b one failed attempt.
+    live.add([rec("a", 0, 1).summary(), rec("a", 0, 2, success=True).summary(), rec("b", 0, 1).summary()],
+             resumed=True)
+    snap = live.snapshot()
+    assert (snap["episodes_done"], snap["episodes_total"], snap["solved"], snap["attempts"]) == (1, 4, 1, 3)
+    assert snap["new_attempts"] == 0 and snap["eta_s"] is None  # nothing finished in this session yet
+    now[0] = 110.0
+    # This session: b fails twice more (out of attempts: finished, unsolved), c is solved at once.
+    live.add([rec("b", 0, 2, invalid="bad").summary(), rec("b", 0, 3).summary()])
+    live.add([rec("c", 0, 1, success=True, steps=4).summary()])
+    live.update(in_flight=1, decisions=6, phase="running")
+    snap = live.snapshot()
+    assert (snap["episodes_done"], snap["solved"], snap["attempts"], snap["new_attempts"]) == (3, 2, 6, 3)
+    assert snap["invalid_attempts"] == 1
+    assert snap["attempts_per_s"] == pytest.approx(3 / 10)
+    assert snap["eta_s"] == pytest.approx(1 * 10 / 2)  # 1 episode left at 2 finished per 10 s
+    # An episode is counted once, however many of its attempts arrive.
+    assert sum(1 for e in live.episodes.values() if e.finished) == 3
+
+
+def test_progress_line_says_what_is_happening():
+    from deepphy.metrics.live import LiveMetrics, format_progress
+
+    now = [0.0]
+    live = LiveMetrics(episodes_total=120, max_attempts=10, clock=lambda: now[0])
+    live.update(phase="starting environment workers", in_flight=0)
+    now[0] = 3.0
+    line = format_progress(live.snapshot())
+    assert line.startswith("starting environment workers · episodes 0/120 · solved 0 · attempts 0 (0.0/s)")
+    assert "ETA" not in line and line.endswith("3s")
+    live.update(phase="running", in_flight=64, decisions=200)
+    live.add([rec(t, 0, 1, success=True).summary() for t in "abc"])
+    now[0] = 75.0
+    line = format_progress(live.snapshot())
+    assert "episodes 3/120 · in flight 64 · solved 3 · attempts 3 (0.0/s) · decisions 200" in line
+    assert "ETA 48m45s" in line and line.endswith("1m15s")  # 117 left at 3 per 75 s
+    assert "% of finished" not in line

@@ -12,10 +12,10 @@ import jsonschema
 import pytest
 
 from deepphy.models import (
-    ModelConfig, ModelError, UnknownModel, client_from_config, load_models, make_client, model_config,
+    ModelConfig, ModelError, UnknownModel, client_from_config, load_models, model_config,
 )
 from deepphy.models.config import MissingKey, ModelsFile
-from deepphy.models.mock import MockModel
+from deepphy.agents import MockModel, make_agent
 from deepphy.testing.model_server import FAULT_KINDS, PROSE_REPLY, ServerConfig, ServerThread
 from deepphy.models.wire import decode_context, encode_context, parse_retry_after
 from deepphy.prompts import PromptFormat
@@ -78,9 +78,9 @@ def test_models_file_validation(tmp_path):
     cfg = model_config("mine", f)
     assert cfg.resolved_base_url == "https://generativelanguage.googleapis.com/v1beta"
     assert cfg.resolved_max_images == 3000 and cfg.rate_limits.requests_per_min == 10
-    assert make_client("mock", f).name == "mock"
+    assert make_agent("mock", f).name == "mock"
     with pytest.raises(UnknownModel, match="mine"):
-        make_client("other", f)
+        make_agent("other", f)
 
 
 def test_missing_key_is_reported_by_variable_name(monkeypatch):

@@ -94,8 +94,7 @@ def test_faulty_server_run_equals_the_mock_run(server, models_file, mock_run, tm
     server.configure(faults={"rate": 0.2, "kinds": TRANSPORT_FAULTS, "retry_after_s": 0.2, "hang_s": 30.0})
     out = tmp_path / "run"
     stream = io.StringIO()
-    outcome = evaluate(LOCAL, out, RUNTIME.model_copy(update={"progress": True}),
-                       client_options={"models_file": models_file()}, stream=stream)
+    outcome = evaluate(LOCAL, out, RUNTIME.model_copy(update={"progress": True, "models_file": models_file()}), stream=stream)
     assert outcome.complete, outcome.unfinished
     records = assert_one_record_per_attempt(out)
     # exactly the decisions and outcomes of --model mock with the same seed
@@ -128,7 +127,7 @@ def test_prose_replies_are_invalid_attempts_and_image_cuts_are_recorded(server, 
     server.configure(faults={"rate": 0.2, "kinds": ["prose"]})
     config = RunConfig(**{**LOCAL.model_dump(), "runs": 1})
     f = models_file(max_images=1)  # also: only the newest image goes; the cut is recorded
-    assert evaluate(config, tmp_path, RUNTIME, client_options={"models_file": f}).complete
+    assert evaluate(config, tmp_path, RUNTIME.model_copy(update={"models_file": f})).complete
     records = assert_one_record_per_attempt(tmp_path)
     # attempt k shows the key frames of attempts 1..k-1 (none for an invalid one) + 2 observation images
     frames = {r.key: len(r.key_frames) for r in records}
@@ -146,16 +145,16 @@ def test_cost_budget_stops_cleanly_and_resumes(server, models_file, mock_run, tm
     server.configure(faults={"rate": 0.0})
     f = models_file(price={"input_per_mtok": 100.0, "output_per_mtok": 0.0})  # ~ $0.14 per request
     budget = 1.0
-    first = evaluate(LOCAL, tmp_path, RUNTIME.model_copy(update={"max_cost_usd": budget}), client_options={"models_file": f})
+    first = evaluate(LOCAL, tmp_path, RUNTIME.model_copy(update={"max_cost_usd": budget, "models_file": f}))
     assert not first.complete and any("cost budget" in u for u in first.unfinished)
     records = assert_one_record_per_attempt(tmp_path)
     spent = sum(r.model_stats.usage.cost_usd for r in records)
     per_request = max(r.model_stats.usage.cost_usd for r in records)
     assert budget <= spent + per_request * RUNTIME.max_in_flight and spent < budget + 10 * per_request
     # resuming with the same budget does nothing new; a larger one finishes the same run
-    again = evaluate(LOCAL, tmp_path, RUNTIME.model_copy(update={"max_cost_usd": budget}), client_options={"models_file": f})
+    again = evaluate(LOCAL, tmp_path, RUNTIME.model_copy(update={"max_cost_usd": budget, "models_file": f}))
     assert again.new_records == 0
-    done = evaluate(LOCAL, tmp_path, RUNTIME, client_options={"models_file": f})
+    done = evaluate(LOCAL, tmp_path, RUNTIME.model_copy(update={"models_file": f}))
     assert done.complete
     assert_one_record_per_attempt(tmp_path)
     assert views(tmp_path) == views(mock_run)

@@ -137,6 +137,7 @@ def test_ray_limiter_is_shared_by_model_workers(ray_cluster, server, tmp_path):
     import ray
 
     from deepphy.actors.model_worker import make_model_worker
+    from deepphy.envs import get_spec
     from deepphy.actors.rate_limiter import ensure_limiter
 
     server.reset()
@@ -145,7 +146,7 @@ def test_ray_limiter_is_shared_by_model_workers(ray_cluster, server, tmp_path):
     models = tmp_path / "models.yaml"
     models.write_text(yaml.safe_dump({"models": [cfg.model_dump(mode="json", exclude_defaults=True)]}))
     limiter = ensure_limiter(cfg)  # the driver owns the limiter
-    workers = [make_model_worker("shared-local", models_file=str(models)) for _ in range(3)]
+    workers = [make_model_worker("shared-local", get_spec("iphyre"), models_file=str(models)) for _ in range(3)]
     try:
         refs = [workers[i % 3].complete.remote(iphyre_request(i % 6, run=i)) for i in range(24)]
         out = ray.get(refs, timeout=RAY_TIMEOUT_S)

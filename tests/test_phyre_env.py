@@ -6,17 +6,18 @@ import sys
 import time
 
 from deepphy.envs import Planning, get_env_class
-from deepphy.envs.phyre import PhyreAction, PhyreEnv, PhyreOptions
+from deepphy.envs.phyre.env import PhyreEnv, PhyreOptions
+from deepphy.envs.phyre.space import PhyreAction
 from deepphy.envs.phyre import scene as S
 from deepphy.envs.phyre.env import cross_test_templates, within_test_variants
 from deepphy.envs.phyre.templates import templates, variant_scene
-from deepphy.prompts import PromptFormat, build_messages, get_prompt
+from deepphy.prompts import PromptFormat, build_messages
 
 
 def test_registered_and_contract():
     cls = get_env_class("phyre")
     assert cls is PhyreEnv
-    assert cls.planning is Planning.IN_ADVANCE and cls.max_steps == 1 and cls.max_attempts == 10
+    assert cls.spec.planning is Planning.IN_ADVANCE and cls.spec.max_steps == 1 and cls.spec.max_attempts == 10
 
 
 def test_default_task_set_is_fast_and_follows_the_folds():
@@ -46,7 +47,7 @@ def test_observation_images_and_prompt():
     assert scene.shape == grid.shape == (512, 512, 3) and (scene != grid).any()
     assert "Goal" in obs.text
     for fmt in PromptFormat:
-        msgs = build_messages(get_prompt("phyre"), fmt, task, obs, [])
+        msgs = build_messages(PhyreEnv.spec.load_prompt(), fmt, task, obs, [])
         assert "Cell: <1..25>, Radius: <1..5>" in msgs[0].text and "TOP-LEFT" in msgs[0].text
 
 

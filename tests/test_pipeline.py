@@ -102,7 +102,7 @@ def test_crashed_env_worker_attempt_is_retried(baseline, tmp_path):
         workers = [n for n in names if n.startswith("deepphy/") and "/env" in n]
         log = tmp_path / ATTEMPTS
         if workers and log.exists() and log.read_bytes().count(b"\n") >= 5:
-            pid = ray.get(ray.get_actor(workers[0]).ping.remote(), timeout=RAY_TIMEOUT_S)
+            pid = ray.get(ray.get_actor(workers[0]).stats.remote(), timeout=RAY_TIMEOUT_S)["pid"]
             os.kill(pid, signal.SIGKILL)
             killed = pid
         time.sleep(0.05)

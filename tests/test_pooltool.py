@@ -20,14 +20,8 @@ import numpy as np
 import pytest
 
 from deepphy.envs import ActionSpace, InvalidAction, Planning, Task, get_env_class
-from deepphy.envs.pooltool import (
-    ACTIONS,
-    SPOT_OFFSETS,
-    SPOTS,
-    PoolShot,
-    PoolSpace,
-    PooltoolEnv,
-)
+from deepphy.envs.pooltool.env import PooltoolEnv
+from deepphy.envs.pooltool.space import ACTIONS, SPOT_OFFSETS, SPOTS, PoolShot, PoolSpace
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -63,7 +57,7 @@ def home(tmp_path_factory):
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("DEEPPHY_CACHE_DIR", os.environ.get("DEEPPHY_CACHE_DIR") or str(Path("~/.cache/deepphy").expanduser()))
         mp.setenv("HOME", str(path))
-        from deepphy.envs.pooltool import _engine
+        from deepphy.envs.pooltool.sim import _engine
 
         _engine()  # imports pooltool (reads HOME once, at import) and builds the engine
     yield path
@@ -71,9 +65,7 @@ def home(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def env(home):
-    e = PooltoolEnv()
-    yield e
-    e.close()
+    yield PooltoolEnv()
 
 
 def task(k: int) -> Task:
@@ -177,19 +169,17 @@ def test_env_module_imports_without_pooltool():
 def test_registration_and_task_set():
     cls = get_env_class("pooltool")
     assert cls is PooltoolEnv
-    assert cls.planning is Planning.ON_THE_FLY and cls.max_steps == 15 and cls.max_attempts == 1
+    assert cls.spec.planning is Planning.ON_THE_FLY and cls.spec.max_steps == 15 and cls.spec.max_attempts == 1
     tasks = cls.tasks(cls.Options())
     assert [t.id for t in tasks] == [f"rack_{k:03d}" for k in range(100)]
-    from deepphy.prompts import get_prompt
-
-    assert get_prompt("pooltool").env == "pooltool"
+    assert type(cls.spec.load_prompt()).__name__ == "PooltoolPrompt"
 
 
 # -- the game on real pooltool ---------------------------------------------------------
 
 
 def test_racks_are_nine_ball_diamonds_and_differ(env):
-    from deepphy.envs.pooltool import _ball_params, rack_layout
+    from deepphy.envs.pooltool.sim import _ball_params, rack_layout
 
     R = _ball_params().R
     layouts = [rack_layout(k) for k in range(100)]
@@ -213,10 +203,10 @@ def test_reset_observation_and_render(env):
     assert max(img.shape[:2]) in range(700, 900) and img.shape[1] > img.shape[0]  # landscape, readable
     assert "Balls on the table: 1, 2, 3, 4, 5, 6, 7, 8, 9" in obs.text and "Target (lowest-numbered) ball: 1" in obs.text
     assert obs.action_space == PoolSpace()
-    from deepphy.prompts import PromptFormat, build_messages, get_prompt
+    from deepphy.prompts import PromptFormat, build_messages
 
     for fmt in PromptFormat:
-        msgs = build_messages(get_prompt("pooltool"), fmt, task(0), obs, [])
+        msgs = build_messages(PooltoolEnv.spec.load_prompt(), fmt, task(0), obs, [])
         assert "Strikespot" in msgs[0].text and len(msgs[1].images) == 1
 
 
@@ -294,7 +284,7 @@ def test_same_rack_and_actions_identical_across_processes(env, home):
 @pytest.mark.slow
 def test_random_games_keep_the_table_consistent(env):
     """MOCK-like games on 10 racks: after every shot no two balls overlap on the table."""
-    from deepphy.envs.pooltool import _ball_params
+    from deepphy.envs.pooltool.sim import _ball_params
 
     R = _ball_params().R
     space = PoolSpace()

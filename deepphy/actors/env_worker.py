@@ -2,19 +2,22 @@
 
 Instances are keyed by episode id and live for one attempt. Step requests that arrive
 while the worker is busy are stepped together through `Environment.step_many`, so an
-environment that can batch (Kinetix: vmap) does; the others step one after another.
-A worker that dies is restarted by Ray with no instances; a call for an instance it no
-longer holds raises `LostEpisode`, and the scheduler re-runs that attempt.
+environment that can batch (Kinetix) does; the others step one after another. A batch
+that raises is stepped again one instance at a time, so an environment bug fails only
+the episode that hit it. A worker that dies is restarted by Ray with no instances; a call
+for an instance it no longer holds raises `LostEpisode`, and the scheduler re-runs that
+attempt.
 """
 
 from __future__ import annotations
 
 import asyncio
-from typing import Any
+import os
+from typing import Any, Sequence
 
 import ray
 
-from deepphy.envs import Action, Environment, Observation, StepResult, Task, get_env_class
+from deepphy.envs import Action, EnvSpec, Environment, Observation, StepResult, Task
 
 
 class LostEpisode(KeyError):
@@ -22,13 +25,18 @@ class LostEpisode(KeyError):
 
 
 class EnvWorkerImpl:
-    def __init__(self, env: str, options: dict[str, Any]) -> None:
-        self.cls: type[Environment] = get_env_class(env)
+    def __init__(self, spec: EnvSpec, options: dict[str, Any], log_path: str | None = None) -> None:
+        _redirect_output(log_path)  # library noise (XLA, numba, deprecations) goes to the run's log
+        self.cls: type[Environment] = spec.load()
         self.options = self.cls.Options(**options)
         self.live: dict[str, Environment] = {}
         self.idle: list[Environment] = []  # instances are reused: simulators are costly to build
         self.pending: list[tuple[str, Action, asyncio.Future]] = []
         self.draining = False
+        self.batches = self.steps = self.max_batch = 0
+
+    async def warm_up(self, tasks: Sequence[Task]) -> None:
+        self.cls.warm_up(self.options, tasks)
 
     async def reset(self, episode: str, task: Task) -> Observation:
         env = self.idle.pop() if self.idle else self.cls(self.options)
@@ -47,33 +55,54 @@ class EnvWorkerImpl:
 
     def _drain(self) -> None:
         batch, self.pending, self.draining = self.pending, [], False
+        envs = [self.live[e] for e, _, _ in batch]
+        actions = [a for _, a, _ in batch]
+        self.batches += 1
+        self.steps += len(batch)
+        self.max_batch = max(self.max_batch, len(batch))
         try:
-            results = self.cls.step_many([self.live[e] for e, _, _ in batch], [a for _, a, _ in batch])
-        except Exception as error:  # noqa: BLE001 - one bad batch must not hang its callers
-            for _, _, f in batch:
-                f.set_exception(error)
+            results = self.cls.step_many(envs, actions)
+        except Exception:  # noqa: BLE001 - find the instance that fails; the others go on
+            for env, action, (_, _, future) in zip(envs, actions, batch):
+                try:
+                    future.set_result(self.cls.step_many([env], [action])[0])
+                except Exception as error:  # noqa: BLE001
+                    future.set_exception(error)
             return
-        for (_, _, f), result in zip(batch, results):
-            f.set_result(result)
+        for (_, _, future), result in zip(batch, results):
+            future.set_result(result)
 
     async def release(self, episode: str) -> None:
         env = self.live.pop(episode, None)
         if env is not None:
             self.idle.append(env)
 
-    async def ping(self) -> int:
-        import os
+    async def stats(self) -> dict[str, int]:
+        """Steps, step_many calls and the largest batch so far (batching is observable here,
+        never in records)."""
+        return {"steps": self.steps, "batches": self.batches, "max_batch": self.max_batch, "pid": os.getpid()}
 
-        return os.getpid()
+
+def _redirect_output(log_path: str | None) -> None:
+    """Send this process's stdout and stderr (file descriptors, so C libraries' output too)
+    to `log_path`, if that file can be opened here (a remote node may not see it)."""
+    if not log_path:
+        return
+    try:
+        fd = os.open(log_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    except OSError:
+        return
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    os.close(fd)
 
 
-def make_env_worker(
-    env: str, options: dict[str, Any], *, name: str | None = None, resource: str | None = None, max_restarts: int = 5
-):
+def make_env_worker(spec: EnvSpec, options: dict[str, Any], *, name: str | None = None,
+                    resource: str | None = None, log_path: str | None = None, max_restarts: int = 5):
     """An EnvWorker actor handle: one logical CPU, restarted if its process dies.
 
     `resource` places it only on nodes that declare that custom resource (e.g. `physics`);
     a token amount is asked so CPUs, not the resource, bound the number of workers."""
     actor = ray.remote(num_cpus=1, max_restarts=max_restarts, max_concurrency=1000)(EnvWorkerImpl)
     resources = {resource: 0.001} if resource else None
-    return actor.options(name=name, resources=resources).remote(env, options)
+    return actor.options(name=name, resources=resources).remote(spec, options, log_path)

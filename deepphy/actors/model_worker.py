@@ -4,21 +4,28 @@ from __future__ import annotations
 
 import ray
 
-from deepphy.models import ModelRequest, ModelResponse, make_client
+from deepphy.envs import EnvSpec, register
+from deepphy.models import ModelRequest, ModelResponse
 
 
 class ModelWorkerImpl:
-    def __init__(self, model: str, **client_options) -> None:
-        self.client = make_client(model, **client_options)
+    def __init__(self, model: str, spec: EnvSpec, models_file: str | None = None) -> None:
+        from deepphy.actors.rate_limiter import RayLimiter
+        from deepphy.agents import endpoint_config, make_agent
+
+        register(spec)  # the run's environment, also when it is not one of deepphy's own (MOCK samples its space)
+
+        config = endpoint_config(model, models_file)
+        # Every worker of the cluster consults the endpoint's one shared limiter actor.
+        limiter = RayLimiter(config) if config is not None and config.rate_limits.enabled else None
+        self.client = make_agent(model, models_file, limiter=limiter)
 
     async def complete(self, request: ModelRequest) -> ModelResponse:
         return await self.client.complete(request)
 
-    async def close(self) -> None:
-        await self.client.close()
 
-
-def make_model_worker(model: str, *, name: str | None = None, max_concurrency: int = 1000, **client_options):
+def make_model_worker(model: str, spec: EnvSpec, *, name: str | None = None, models_file: str | None = None,
+                      max_concurrency: int = 1000):
     # Stateless: a crashed worker is restarted and its in-flight calls retried by Ray.
     actor = ray.remote(num_cpus=0, max_restarts=5, max_task_retries=3, max_concurrency=max_concurrency)(ModelWorkerImpl)
-    return actor.options(name=name).remote(model, **client_options)
+    return actor.options(name=name).remote(model, spec, models_file)

@@ -4,6 +4,10 @@ Gymnasium-shaped: `reset(task)` starts an attempt and returns the first observat
 `step(action)` applies one decision. An in-advance environment (PHYRE, I-PHYRE) takes one
 step per attempt (the whole plan); an on-the-fly one takes up to `max_steps` decisions.
 
+What the rest of deepphy needs to know about an environment (planning mode, attempts and
+steps, report figures, prompt, solver) is declared once, in its package's `EnvSpec`
+(deepphy/envs/spec.py); the class carries it as `spec`.
+
 The action syntax lives in the environment's `ActionSpace`: it parses model text into a
 validated `Action` (or raises `InvalidAction` with a reason), samples a random valid
 action for MOCK and writes an action back as text. The space travels inside every
@@ -15,15 +19,17 @@ Environments know nothing of Ray, prompts or models.
 
 from __future__ import annotations
 
-import hashlib
 from abc import ABC, abstractmethod
 from enum import Enum
-from typing import Any, ClassVar, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, Sequence
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from deepphy.envs.images import Image
+from deepphy.chat import Image
+
+if TYPE_CHECKING:
+    from deepphy.envs.spec import EnvSpec
 
 
 class Planning(str, Enum):
@@ -79,7 +85,11 @@ class ActionSpace(BaseModel, ABC):
 
     @abstractmethod
     def parse(self, text: str) -> Action:
-        """Model text -> validated action; raises InvalidAction(reason)."""
+        """Model text -> validated action; raises InvalidAction(reason).
+
+        Total and fast: any string gives an action or InvalidAction, in time linear in its
+        length. When a reply states several answers, the last one counts (deepphy/envs/parsing.py).
+        """
 
     @abstractmethod
     def sample(self, rng: np.random.Generator, exclude: Sequence[Action] = ()) -> Action:
@@ -104,11 +114,17 @@ class Observation(BaseModel):
 
 
 class StepResult(BaseModel):
-    """The consequence of one decision."""
+    """The consequence of one decision.
+
+    The attempt is over when it is `terminated` (the task reached an outcome: solved,
+    lost, an invalid placement) or `truncated` (its time or decision budget ran out
+    first). An environment truncates at its spec's `max_steps` decisions at the latest.
+    """
 
     model_config = ConfigDict(arbitrary_types_allowed=True)
 
-    done: bool  # the attempt is over
+    terminated: bool = False
+    truncated: bool = False
     success: bool = False
     invalid_reason: str | None = None  # a physically invalid action (e.g. overlapping placement)
     observation: Observation | None = None  # next observation while not done
@@ -117,6 +133,10 @@ class StepResult(BaseModel):
     stars: int | None = None
     score: float | None = None
     info: dict[str, Any] = Field(default_factory=dict)  # JSON-able details (end time, ...)
+
+    @property
+    def done(self) -> bool:
+        return self.terminated or self.truncated
 
 
 class EnvOptions(BaseModel):
@@ -128,11 +148,7 @@ class EnvOptions(BaseModel):
 class Environment(ABC):
     """One live environment instance: runs attempts of any of its tasks, one at a time."""
 
-    name: ClassVar[str]
-    title: ClassVar[str]
-    planning: ClassVar[Planning]
-    max_attempts: ClassVar[int]  # attempts per task (protocol K)
-    max_steps: ClassVar[int]  # decisions per attempt (1 for in-advance planning)
+    spec: ClassVar["EnvSpec"]
     Options: ClassVar[type[EnvOptions]] = EnvOptions
 
     def __init__(self, options: EnvOptions | None = None) -> None:
@@ -151,16 +167,13 @@ class Environment(ABC):
     def step(self, action: Action) -> StepResult:
         """Apply one decision of the current attempt."""
 
-    def close(self) -> None:
-        """Free simulator resources."""
+    @classmethod
+    def warm_up(cls, options: EnvOptions, tasks: Sequence[Task]) -> None:
+        """One-time, per-process preparation before these tasks run (compiling kernels).
+        Workers call it before their first episode, so progress can say so."""
 
     @classmethod
     def step_many(cls, envs: Sequence["Environment"], actions: Sequence[Action]) -> list[StepResult]:
         """Step several instances at once. Environments that can batch (vmap) override this."""
         return [env.step(action) for env, action in zip(envs, actions)]
 
-
-def seeded_rng(*keys: Any) -> np.random.Generator:
-    """A generator that depends only on `keys`: stable across processes and machines."""
-    digest = hashlib.sha256(repr(keys).encode()).digest()
-    return np.random.default_rng(int.from_bytes(digest[:16], "little"))

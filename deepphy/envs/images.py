@@ -1,41 +1,13 @@
-"""Images shown to models: PNG-encoded once where they are rendered, plus drawing helpers.
-
-Observations carry PNG bytes, not arrays: they cross Ray, go into prompts as base64 and
-are written to the run directory as key frames, and PNG is what all three need.
-"""
+"""Drawing helpers shared by the environments' renderers (the `Image` type is in deepphy.chat)."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+
+from deepphy.chat import Image  # noqa: F401 - re-exported for renderers
 
 FONT = cv2.FONT_HERSHEY_SIMPLEX
-
-
-class Image(BaseModel):
-    """A named RGB image. `caption` says what it shows (it goes into the prompt)."""
-
-    model_config = ConfigDict(frozen=True)
-
-    name: str
-    caption: str
-    png: bytes
-
-    @classmethod
-    def from_array(cls, name: str, caption: str, rgb: np.ndarray) -> "Image":
-        # Level 6: ~40% smaller than OpenCV's default 1 for ~1 ms more; run directories hold
-        # tens of thousands of these key frames.
-        bgr = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR)
-        ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 6])
-        if not ok:
-            raise ValueError(f"could not encode image {name!r}")
-        return cls(name=name, caption=caption, png=buf.tobytes())
-
-    def to_array(self) -> np.ndarray:
-        """Decode to an RGB uint8 array."""
-        bgr = cv2.imdecode(np.frombuffer(self.png, np.uint8), cv2.IMREAD_COLOR)
-        return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
 def draw_label(

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from statistics import mean, stdev
 from typing import Iterable, Sequence
 
-from deepphy.runs.records import AttemptRecord
+from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished
 
 
 @dataclass(frozen=True)
@@ -21,6 +21,7 @@ class Episode:
     task: str
     group: str
     run: int
+    finished: bool  # solved, or out of attempts (deepphy.runs.records.episode_finished)
     attempts: int  # attempts used
     solved_at: int | None  # attempt number of the success, if any
     invalid: int  # attempts that ended on an invalid action
@@ -42,9 +43,10 @@ class Episode:
         return None if self.solved_at is None else self.solved_at - self.invalid
 
 
-def episodes(records: Iterable[AttemptRecord]) -> list[Episode]:
-    """Group records into episodes. Attempts after a success (there should be none) are ignored."""
-    by_episode: dict[tuple[str, int], list[AttemptRecord]] = defaultdict(list)
+def episodes(records: Iterable[AttemptRecord | AttemptSummary], max_attempts: int) -> list[Episode]:
+    """Group records (or their summaries) into episodes of at most `max_attempts` attempts.
+    Attempts after a success (there should be none) are ignored."""
+    by_episode: dict[tuple[str, int], list[AttemptRecord | AttemptSummary]] = defaultdict(list)
     for r in records:
         by_episode[(r.task, r.run)].append(r)
     out = []
@@ -59,10 +61,11 @@ def episodes(records: Iterable[AttemptRecord]) -> list[Episode]:
                 task=task,
                 group=recs[0].group,
                 run=run,
+                finished=episode_finished(recs, max_attempts),
                 attempts=len(recs),
                 solved_at=solved.attempt if solved else None,
                 invalid=sum(r.invalid for r in recs),
-                steps_to_solve=len(solved.steps) if solved else None,
+                steps_to_solve=solved.decisions if solved else None,
                 stars=(solved.stars if solved and solved.stars is not None else (max(stars) if stars else None)),
                 model_errors=sum(r.model_stats.model_errors for r in recs),
                 retries=sum(r.model_stats.retries for r in recs),

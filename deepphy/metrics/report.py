@@ -10,17 +10,13 @@ from collections import defaultdict
 from typing import Any, Sequence
 
 from deepphy.config import RunConfig
-from deepphy.envs import Task
+from deepphy.envs import ReportSpec, Task, get_spec
 from deepphy.metrics import figures as F
 from deepphy.runs.records import AttemptRecord
 
-# Decision checkpoints reported for single-attempt, many-decision environments.
-STEP_CHECKPOINTS: dict[str, tuple[int, ...]] = {"pooltool": (1, 3, 6, 9, 12, 15)}
-AUCCESS_ENVS = {"phyre"}
 
-
-def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, env: str, run: int) -> dict[str, Any]:
-    finished = [e for e in eps if e.solved or e.attempts >= k_max]
+def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, figures: ReportSpec, run: int) -> dict[str, Any]:
+    finished = [e for e in eps if e.finished]
     solved = sum(e.solved for e in eps)
     out: dict[str, Any] = {
         "run": run,
@@ -32,12 +28,12 @@ def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, env: str, run: 
         "avg_attempts": F.average_attempts(eps),
         **F.totals(eps),
     }
-    if env in STEP_CHECKPOINTS:
-        out["success_within_steps"] = {str(k): F.success_within_steps(eps, k, n_tasks) for k in STEP_CHECKPOINTS[env]}
+    if figures.step_checkpoints:
+        out["success_within_steps"] = {str(k): F.success_within_steps(eps, k, n_tasks) for k in figures.step_checkpoints}
         out["avg_steps"] = F.average_steps(eps)
-    if env in AUCCESS_ENVS:
+    if figures.auccess:
         out["auccess"] = F.auccess(eps, n_tasks)
-    if any(e.stars is not None for e in eps):
+    if figures.stars:
         s = F.stars(eps, n_tasks)
         out["stars"] = {
             "total": s.total,
@@ -69,18 +65,19 @@ def _mean_std(per_run: list[dict[str, Any]]) -> tuple[dict[str, Any], dict[str, 
     return means, stds
 
 
-def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int, env: str) -> dict[str, Any]:
+def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int, figures: ReportSpec) -> dict[str, Any]:
     by_run: dict[int, list[F.Episode]] = defaultdict(list)
     for e in eps:
         by_run[e.run].append(e)
-    per_run = [_run_figures(by_run.get(r, []), len(tasks), k_max, env, r) for r in range(runs)]
+    per_run = [_run_figures(by_run.get(r, []), len(tasks), k_max, figures, r) for r in range(runs)]
     mean, std = _mean_std(per_run)
     return {"tasks": len(tasks), "per_run": per_run, "mean": mean, "std": std}
 
 
 def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[AttemptRecord], k_max: int) -> dict[str, Any]:
+    figures = get_spec(config.env).report
     wanted = {t.id for t in tasks}
-    eps = [e for e in F.episodes(records) if e.task in wanted and e.run < config.runs]
+    eps = [e for e in F.episodes(records, k_max) if e.task in wanted and e.run < config.runs]
     report: dict[str, Any] = {
         "env": config.env,
         "model": config.model,
@@ -88,13 +85,14 @@ def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[Att
         "runs": config.runs,
         "seed": config.seed,
         "max_attempts": k_max,
+        "step_noun": figures.step_noun,
         "env_options": config.env_options,
-        "overall": _section(eps, tasks, config.runs, k_max, config.env),
+        "overall": _section(eps, tasks, config.runs, k_max, figures),
     }
     groups = sorted({t.group for t in tasks if t.group})
     if len(groups) > 1:
         report["groups"] = {
-            g: _section([e for e in eps if e.group == g], [t for t in tasks if t.group == g], config.runs, k_max, config.env)
+            g: _section([e for e in eps if e.group == g], [t for t in tasks if t.group == g], config.runs, k_max, figures)
             for g in groups
         }
     return report
@@ -146,7 +144,8 @@ def table(reports: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]
     header = (["setting"] if combined else []) + ["group", "n"] + [f"Att.{k}" for k in range(1, k_max + 1)]
     header += ["AvgAtt", "Solved", "Invalid"]
     if extra_steps:
-        header += [f"Shot{k}" for k in extra_steps] + ["AvgShots"]
+        noun = reports[0].get("step_noun", "step").capitalize()
+        header += [f"{noun}{k}" for k in extra_steps] + [f"Avg{noun}s"]
     if show_auccess:
         header.append("AUCCESS")
     if show_stars:

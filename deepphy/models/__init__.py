@@ -1,51 +1,42 @@
-"""Model clients. `make_client(name, models_file)` builds the client a run config names.
+"""Model endpoints over HTTP: configs (models files), provider clients, rate limiting.
 
-"mock" is built in; every other name comes from a models file (deepphy/models/config.py):
-the shipped deepphy/models/models.yaml unless `models_file` (or $DEEPPHY_MODELS_FILE)
-names another.
+Knows nothing of environments, Ray or actors: the model worker injects the cluster's
+shared limiter. Agents by name (baselines included) are made in deepphy/agents.py.
 """
 
 from pathlib import Path
 
-from deepphy.models.base import ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext, Usage
+from deepphy.chat import Usage
+from deepphy.models.base import ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext
 from deepphy.models.config import MissingKey, ModelConfig, ModelsFileError, load_models
+from deepphy.models.limiter import Limiter
 
 
 class UnknownModel(KeyError):
     def __init__(self, name: str, available: list[str] | None = None) -> None:
         super().__init__(name)
-        self.available = ["mock", *(available or [])]
+        self.available = list(available or [])
 
     def __str__(self) -> str:
         return f"unknown model {self.args[0]!r}; available: {', '.join(self.available)}"
 
 
-def model_config(name: str, models_file: str | Path | None = None) -> ModelConfig | None:
-    """The config of a named model (None for the built-in mock)."""
-    if name == "mock":
-        return None
+def model_config(name: str, models_file: str | Path | None = None) -> ModelConfig:
+    """The config of a named endpoint."""
     models = load_models(models_file)
     if name not in models:
         raise UnknownModel(name, sorted(models))
     return models[name]
 
 
-def client_from_config(config: ModelConfig, limiter="auto") -> ModelClient:
+def client_from_config(config: ModelConfig, limiter: Limiter | None = None) -> ModelClient:
     """The client for a config; reads its key from the environment (MissingKey if unset)."""
     from deepphy.models.providers import CLIENTS
 
     return CLIENTS[config.provider.value](config, limiter=limiter)
 
 
-def make_client(name: str, models_file: str | Path | None = None) -> ModelClient:
-    if name == "mock":
-        from deepphy.models.mock import MockModel
-
-        return MockModel()
-    return client_from_config(model_config(name, models_file))
-
-
 __all__ = [
-    "MissingKey", "ModelClient", "ModelConfig", "ModelsFileError", "ModelError", "ModelRequest", "ModelResponse", "RequestContext",
-    "Usage", "UnknownModel", "client_from_config", "load_models", "make_client", "model_config",
+    "MissingKey", "ModelClient", "ModelConfig", "ModelsFileError", "ModelError", "ModelRequest", "ModelResponse",
+    "RequestContext", "Usage", "UnknownModel", "client_from_config", "load_models", "model_config",
 ]

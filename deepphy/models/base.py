@@ -1,6 +1,6 @@
 """The model interface: prompt messages in, text plus token usage out.
 
-Every model, MOCK included, is reached through `ModelClient.complete`, so the parsing
+Every model, the MOCK baselines included (deepphy/baselines.py), is reached through `ModelClient.complete`, so the parsing
 path is exercised the same way for a random baseline and for a real VLM.
 """
 
@@ -11,7 +11,7 @@ from typing import Any
 
 from pydantic import BaseModel, Field
 
-from deepphy.prompts import Message, PromptFormat
+from deepphy.chat import Message, PromptFormat, Usage
 
 
 class RequestContext(BaseModel):
@@ -33,19 +33,6 @@ class ModelRequest(BaseModel):
     temperature: float = 0.1
     max_tokens: int = 1024
     context: RequestContext
-
-
-class Usage(BaseModel):
-    input_tokens: int = 0
-    output_tokens: int = 0
-    cost_usd: float = 0.0
-
-    def __add__(self, other: "Usage") -> "Usage":
-        return Usage(
-            input_tokens=self.input_tokens + other.input_tokens,
-            output_tokens=self.output_tokens + other.output_tokens,
-            cost_usd=self.cost_usd + other.cost_usd,
-        )
 
 
 class ModelResponse(BaseModel):

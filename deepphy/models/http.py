@@ -4,8 +4,9 @@ A provider subclass says only how to build its request and read its response
 (deepphy/models/providers.py). Everything else is here:
 - one aiohttp session per event loop; the connection pool is sized by max_concurrent
   (unbounded when no limit is set);
-- every HTTP try takes a grant from the endpoint's limiter (shared Ray actor inside a Ray
-  cluster, in-process otherwise) and returns it with the tokens actually used;
+- every HTTP try takes a grant from the endpoint's limiter and returns it with the tokens
+  actually used. The limiter is injected: the model worker passes the cluster-wide Ray
+  limiter; by default a client limits itself in-process (`LocalLimiter`);
 - retries with exponential backoff and jitter on 429, 408, 409, 5xx, timeouts,
   connection errors and unusable 200s (malformed JSON, no choices); `Retry-After` /
   `retry-after-ms` is honoured (capped at max_retry_after_s); at most max_retries; then
@@ -24,11 +25,12 @@ from typing import Any
 import aiohttp
 from pydantic import SecretStr
 
+from deepphy.chat import Message
 from deepphy.models.base import ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext, Usage
 from deepphy.models.config import ModelConfig
 from deepphy.models.limiter import Limiter, LocalLimiter
 from deepphy.models.wire import CONTEXT_HEADER, encode_context, estimate_input_tokens, limit_images, parse_retry_after
-from deepphy.prompts.base import Message
+from deepphy.seeding import seeded_rng
 
 RETRYABLE_STATUS = {408, 409, 429}  # plus every 5xx (Anthropic's 529 "overloaded" included)
 
@@ -45,23 +47,21 @@ class _Failure(Exception):
 
 def request_seed(ctx: RequestContext) -> int:
     """A per-request seed for providers that take one: stable for a (seed, task, run, attempt, step)."""
-    from deepphy.envs import seeded_rng
-
     return int(seeded_rng("request-seed", ctx.seed, ctx.env, ctx.task_id, ctx.run, ctx.attempt, ctx.step).integers(2**31 - 1))
 
 
 class HTTPModelClient(ModelClient):
-    """Base of the provider clients. `limiter`: "auto" (Ray actor when Ray is running,
-    else in-process; none when the config sets no limits), None, or a `Limiter`."""
+    """Base of the provider clients. `limiter`: the endpoint's shared `Limiter`; None means
+    an in-process one (or none at all when the config sets no limits)."""
 
-    def __init__(self, config: ModelConfig, limiter: Limiter | str | None = "auto") -> None:
+    def __init__(self, config: ModelConfig, limiter: Limiter | None = None) -> None:
         self.config = config
         self.name = config.name
         key = config.api_key()
         self._key = SecretStr(key) if key else None
-        self._limiter_arg = limiter
-        self._limiter: Limiter | None = None
-        self._limiter_ready = False
+        if limiter is None and config.rate_limits.enabled:
+            limiter = LocalLimiter(config.rate_limits)
+        self._limiter = limiter
         self._session: aiohttp.ClientSession | None = None
         self._session_loop: asyncio.AbstractEventLoop | None = None
         self._rng = random.Random()
@@ -94,7 +94,7 @@ class HTTPModelClient(ModelClient):
     def __reduce__(self):
         # Never pickle the key (Ray would copy it into the object store): the receiving
         # process reads it from its own environment.
-        return (type(self), (self.config, self._limiter_arg if isinstance(self._limiter_arg, (str, type(None))) else "auto"))
+        return (type(self), (self.config,))
 
     def _redact(self, text: str) -> str:
         if self._key is not None:
@@ -104,28 +104,6 @@ class HTTPModelClient(ModelClient):
         return text
 
     # --- plumbing -------------------------------------------------------------------------
-
-    def _get_limiter(self) -> Limiter | None:
-        if not self._limiter_ready:
-            arg = self._limiter_arg
-            if arg == "auto":
-                if not self.config.rate_limits.enabled:
-                    self._limiter = None
-                else:
-                    import ray
-
-                    if ray.is_initialized():
-                        from deepphy.actors.rate_limiter import RayLimiter
-
-                        self._limiter = RayLimiter(self.config)
-                    else:
-                        self._limiter = LocalLimiter(self.config.rate_limits)
-            elif isinstance(arg, str):
-                raise ValueError(f"limiter must be 'auto', None or a Limiter, got {arg!r}")
-            else:
-                self._limiter = arg
-            self._limiter_ready = True
-        return self._limiter
 
     def _get_session(self) -> aiohttp.ClientSession:
         loop = asyncio.get_running_loop()
@@ -189,7 +167,7 @@ class HTTPModelClient(ModelClient):
         if self._key is not None:
             headers.update(self.auth_headers(self._key.get_secret_value()))
         estimate_in = estimate_input_tokens(messages)
-        limiter = self._get_limiter()
+        limiter = self._limiter
         lease_s = cfg.timeouts.request_s + cfg.timeouts.connect_s + 30.0
         session = self._get_session()
         url = self.url()

@@ -21,7 +21,7 @@ from typing import Any
 from deepphy.models.base import ModelRequest
 from deepphy.models.http import EmptyReply, HTTPModelClient, request_seed
 from deepphy.models.wire import png_b64
-from deepphy.prompts.base import ImagePart, Message, TextPart
+from deepphy.chat import ImagePart, Message, TextPart
 
 
 def _system_text(messages: list[Message]) -> str:

@@ -11,8 +11,8 @@ import time
 import zlib
 from typing import Mapping
 
+from deepphy.chat import ImagePart, Message, TextPart
 from deepphy.models.base import RequestContext
-from deepphy.prompts.base import ImagePart, Message, TextPart
 
 # The local MOCK server needs the RequestContext; real providers must never see it in the
 # messages. Clients whose config sets `send_context` (allowed for loopback URLs only) send

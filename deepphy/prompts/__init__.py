@@ -1,37 +1,21 @@
-"""Prompts: the words shown to a model. One module per environment, plus the shared builder."""
+"""Prompts: the words shown to a model. The shared builder lives here; each environment's
+words live in its own package (deepphy/envs/<name>/prompt.py, loaded via its EnvSpec)."""
 
 from __future__ import annotations
 
-import importlib
-
+from deepphy.chat import ImagePart, Message, PromptFormat, TextPart
 from deepphy.prompts.base import (
     EnvPrompt,
-    ImagePart,
-    Message,
     PastAttempt,
     PastStep,
-    PromptFormat,
-    TextPart,
     build_messages,
     mock_reply,
+    prompt_as_json,
+    prompt_digest,
     split_reply,
 )
 
-# env name -> "module:Class"
-PROMPTS: dict[str, str] = {
-    "iphyre": "deepphy.prompts.iphyre:IPhyrePrompt",
-    "kinetix": "deepphy.prompts.kinetix:KinetixPrompt",
-    "pooltool": "deepphy.prompts.pooltool:PooltoolPrompt",
-    "phyre": "deepphy.prompts.phyre:PhyrePrompt",
-}
-
-
-def get_prompt(env: str) -> EnvPrompt:
-    module, cls = PROMPTS[env].split(":")
-    return getattr(importlib.import_module(module), cls)()
-
-
 __all__ = [
-    "EnvPrompt", "ImagePart", "Message", "PROMPTS", "PastAttempt", "PastStep", "PromptFormat",
-    "TextPart", "build_messages", "get_prompt", "mock_reply", "split_reply",
+    "EnvPrompt", "ImagePart", "Message", "PastAttempt", "PastStep", "PromptFormat", "TextPart",
+    "build_messages", "mock_reply", "prompt_as_json", "prompt_digest", "split_reply",
 ]

@@ -1,6 +1,6 @@
 """Prompt construction shared by all environments: message types, formats, history.
 
-An environment's prompt module (deepphy/prompts/<env>.py) supplies the words: the legend
+An environment's prompt (deepphy/envs/<name>/prompt.py, named by its EnvSpec) supplies the words: the legend
 of the scene, the goal, the action syntax with its ranges and the validity rules. This
 module assembles them with the observation and the history of failed attempts into chat
 messages, and splits a reply into the WM prediction and the action text.
@@ -13,40 +13,12 @@ import hashlib
 import json
 import re
 from abc import ABC, abstractmethod
-from enum import Enum
-from typing import ClassVar, Literal, Sequence, Union
+from typing import ClassVar, Sequence
 
 from pydantic import BaseModel, Field
 
-from deepphy.envs import Image, Observation, Task
-
-
-class PromptFormat(str, Enum):
-    VLA = "vla"  # rules + observation (+ history) -> the action only
-    WM = "wm"  # the same, but a prediction of the consequences comes before the action
-
-
-class TextPart(BaseModel):
-    type: Literal["text"] = "text"
-    text: str
-
-
-class ImagePart(BaseModel):
-    type: Literal["image"] = "image"
-    image: Image
-
-
-class Message(BaseModel):
-    role: Literal["system", "user", "assistant"]
-    content: list[Union[TextPart, ImagePart]]
-
-    @property
-    def text(self) -> str:
-        return "\n".join(p.text for p in self.content if isinstance(p, TextPart))
-
-    @property
-    def images(self) -> list[Image]:
-        return [p.image for p in self.content if isinstance(p, ImagePart)]
+from deepphy.chat import Image, ImagePart, Message, PromptFormat, TextPart
+from deepphy.envs.base import Observation, Task
 
 
 class PastAttempt(BaseModel):
@@ -68,9 +40,9 @@ class PastStep(BaseModel):
 
 
 class EnvPrompt(ABC):
-    """The words for one environment."""
+    """The words for one environment. Numbers (sizes, time limits, speeds, step counts)
+    come from the environment's constants or its action space, never retyped."""
 
-    env: ClassVar[str]
     recent_steps_shown: ClassVar[int] = 5  # on-the-fly: how many earlier decisions to show
 
     @abstractmethod

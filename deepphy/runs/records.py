@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Sequence
 
 from pydantic import BaseModel, Field
 
-from deepphy.models.base import Usage
+from deepphy.chat import Usage
 
 
 class StepRecord(BaseModel):
@@ -21,6 +21,8 @@ class StepRecord(BaseModel):
     invalid_reason: str | None = None
     feedback: str = ""
     info: dict[str, Any] = Field(default_factory=dict)
+    terminated: bool = False  # the environment's facts after this decision (see StepResult)
+    truncated: bool = False
 
 
 class KeyFrame(BaseModel):
@@ -58,6 +60,7 @@ class AttemptRecord(BaseModel):
     steps: list[StepRecord]
     success: bool
     invalid_reason: str | None = None  # set when the attempt ended on an invalid action
+    truncated: bool = False  # the attempt ran out of time or decisions (the environment says so)
     stars: int | None = None
     score: float | None = None
     key_frames: list[KeyFrame] = Field(default_factory=list)
@@ -73,6 +76,39 @@ class AttemptRecord(BaseModel):
     def invalid(self) -> bool:
         return self.invalid_reason is not None
 
+    @property
+    def decisions(self) -> int:
+        return len(self.steps)
+
+    def summary(self) -> "AttemptSummary":
+        return AttemptSummary(
+            task=self.task, group=self.group, run=self.run, attempt=self.attempt, success=self.success,
+            invalid=self.invalid, decisions=self.decisions, stars=self.stars, truncated=self.truncated,
+            model_stats=self.model_stats,
+        )
+
     def deterministic_view(self) -> dict[str, Any]:
         """The record without wall-clock and provider facts: equal for equal seeds."""
         return self.model_dump(exclude={"timing", "model_stats"})
+
+
+class AttemptSummary(BaseModel):
+    """What the metrics need of an attempt; small, so live views get one per attempt cheaply.
+    Field names match AttemptRecord's, so the figures take either."""
+
+    task: str
+    group: str = ""
+    run: int
+    attempt: int
+    success: bool
+    invalid: bool
+    decisions: int
+    stars: int | None = None
+    truncated: bool = False
+    model_stats: ModelStats = Field(default_factory=ModelStats)
+
+
+def episode_finished(attempts: Sequence[AttemptRecord | AttemptSummary], max_attempts: int) -> bool:
+    """An episode (task, run) is finished once an attempt succeeded or K attempts are used.
+    The one definition: the scheduler, the metrics actor and the report all use it."""
+    return any(r.success for r in attempts) or len(attempts) >= max_attempts

@@ -5,6 +5,9 @@ Layout:
     attempts.jsonl   one AttemptRecord per line, appended by the single driver
     prompts/<digest>.json   each distinct prompt text once (images as placeholders)
     frames/<task>/r<run>_a<attempt>_<name>.png   key frames, referenced by records
+    errors.jsonl     attempts that failed with an unexpected error (type, message, traceback);
+                     they have no record, so a resume runs them again
+    logs/            output of the run's worker processes (library warnings and the like)
     .lock            held (flock) while a run writes, so two runs cannot interleave
 
 Crash safety: a record is one `write` of one line on an O_APPEND descriptor, made after
@@ -27,6 +30,8 @@ from deepphy.runs.records import AttemptRecord
 
 CONFIG = "config.json"
 ATTEMPTS = "attempts.jsonl"
+ERRORS = "errors.jsonl"
+LOGS = "logs"
 
 
 class RunDirError(RuntimeError):
@@ -61,6 +66,7 @@ class RunStore:
             store.path.mkdir(parents=True, exist_ok=True)
             (store.path / "frames").mkdir(exist_ok=True)
             (store.path / "prompts").mkdir(exist_ok=True)
+            (store.path / LOGS).mkdir(exist_ok=True)
         except OSError as e:
             raise RunDirError(f"cannot create run directory {store.path}: {e.strerror}") from None
         store._lock()
@@ -110,6 +116,14 @@ class RunStore:
         written = os.write(self._fd, line)
         if written != len(line):  # never seen on a local disk; fail loudly rather than tear
             raise OSError(f"short write to {ATTEMPTS}: {written} of {len(line)} bytes")
+
+    def append_error(self, error: dict) -> None:
+        """One attempt that ended in an unexpected error (not a record: a resume retries it)."""
+        with open(self.path / ERRORS, "a") as f:
+            f.write(json.dumps(error) + "\n")
+
+    def log_path(self, name: str) -> str:
+        return str((self.path / LOGS / f"{name}.log").resolve())
 
     def write_frame(self, task: str, run: int, attempt: int, name: str, png: bytes) -> str:
         rel = f"frames/{task}/r{run}_a{attempt}_{name}.png"

@@ -17,7 +17,7 @@ The answer: the server needs the request's RequestContext, which is NOT in the m
 `send_context: true` (allowed only for loopback base URLs) send it in the
 `X-Deepphy-Context` header (base64url of zlib'd JSON, see deepphy.models.wire); the
 server answers `mock_reply(ctx.format, mock_action_text(ctx))`, which is byte for byte
-what `deepphy.models.mock.MockModel` returns for the same request. Without the header it
+what `deepphy.agents.MockModel` returns for the same request. Without the header it
 answers 400.
 
 Faults (at `--fault-rate`, kinds from `--faults`): `429` (with Retry-After), `500`,
@@ -51,6 +51,7 @@ from aiohttp import web
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from deepphy.models.wire import CONTEXT_HEADER, decode_context, image_tokens, text_tokens
+from deepphy.seeding import seeded_rng
 
 FAULT_KINDS = ("429", "500", "hang", "malformed", "empty", "prose")
 PROSE_REPLY = (
@@ -91,8 +92,6 @@ class ServerConfig(BaseModel):
 
 
 def _rng(*keys: Any):
-    from deepphy.envs import seeded_rng
-
     return seeded_rng("model-server", *keys)
 
 
@@ -468,7 +467,7 @@ class MockServer:
         if fault == "prose":
             text = PROSE_REPLY
         else:
-            from deepphy.models.mock import mock_action_text
+            from deepphy.agents import mock_action_text
             from deepphy.prompts import mock_reply
 
             text = mock_reply(ctx.format, mock_action_text(ctx))

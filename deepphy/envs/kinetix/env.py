@@ -31,16 +31,19 @@ from typing import Any, Literal, Sequence
 import numpy as np
 from pydantic import field_validator
 
-from deepphy.envs.base import Action, EnvOptions, Environment, Observation, Planning, StepResult, Task
+from deepphy.envs.base import Action, EnvOptions, Environment, Observation, StepResult, Task
 from deepphy.envs.images import Image
-from deepphy.envs.kinetix.levels import SIZES, level_names, task_id
+from deepphy.envs.kinetix import SPEC
+from deepphy.envs.kinetix.levels import (
+    MAX_DECISIONS,
+    MAX_TIMESTEPS,
+    SECONDS_PER_DECISION,
+    SIZES,
+    level_names,
+    task_id,
+)
 from deepphy.envs.kinetix.render import Controls, annotate, controls, goal_distance_px, render
 from deepphy.envs.kinetix.space import KinetixAction, KinetixSpace
-
-STEPS_PER_DECISION = 16
-MAX_DECISIONS = 16  # 256 kinetix env steps
-SECONDS_PER_DECISION = STEPS_PER_DECISION * 2 / 60  # two 1/60 s substeps per env step
-MAX_TIMESTEPS = 256
 
 
 class KinetixOptions(EnvOptions):
@@ -59,11 +62,7 @@ class KinetixOptions(EnvOptions):
 
 
 class KinetixEnv(Environment):
-    name = "kinetix"
-    title = "Kinetix"
-    planning = Planning.ON_THE_FLY
-    max_attempts = 1
-    max_steps = MAX_DECISIONS
+    spec = SPEC
     Options = KinetixOptions
 
     def __init__(self, options: KinetixOptions | None = None) -> None:
@@ -82,7 +81,7 @@ class KinetixEnv(Environment):
         for size in SIZES:
             if size in options.sizes:
                 out += [
-                    Task(env=cls.name, id=task_id(name), group=size, params={"level": name})
+                    Task(env=SPEC.name, id=task_id(name), group=size, params={"level": name})
                     for name in level_names(size)
                 ]
         return out
@@ -161,6 +160,7 @@ class KinetixEnv(Environment):
         elif out.done or self._decision >= MAX_DECISIONS:
             outcome = "timeout" if out.timestep >= MAX_TIMESTEPS or self._decision >= MAX_DECISIONS else "unstable"
         done = outcome != "running"
+        truncated = outcome == "timeout"
         dist = "n/a" if self._distance is None else f"{self._distance:.0f} px"
         was = "" if before is None else f" (was {before:.0f} px)"
         feedback = {
@@ -171,7 +171,8 @@ class KinetixEnv(Environment):
             "running": f"goal distance {dist}{was}",
         }[outcome]
         return StepResult(
-            done=done,
+            terminated=done and not truncated,
+            truncated=truncated,
             success=outcome == "goal",
             observation=None if done else self._observation(images),
             feedback=feedback,

@@ -9,6 +9,13 @@ from pathlib import Path
 
 SIZES = ("S", "M", "L")
 
+# Decisions: each holds the action for STEPS_PER_DECISION kinetix env steps of two 1/60 s
+# physics substeps; kinetix ends an episode after MAX_TIMESTEPS env steps.
+STEPS_PER_DECISION = 16
+MAX_TIMESTEPS = 256
+MAX_DECISIONS = MAX_TIMESTEPS // STEPS_PER_DECISION  # 16
+SECONDS_PER_DECISION = STEPS_PER_DECISION * 2 / 60  # ~0.53 s
+
 
 @functools.lru_cache(maxsize=1)
 def levels_dir() -> Path:

@@ -30,9 +30,9 @@ from typing import Any
 
 import numpy as np
 
-from deepphy.envs.kinetix.levels import level_path
+from deepphy.cache import cache_root as deepphy_cache_root
+from deepphy.envs.kinetix.levels import STEPS_PER_DECISION, level_path
 
-STEPS_PER_DECISION = 16
 BUCKETS = (64, 8, 1)  # batch shapes compiled per size (see `_chunks`)
 PAD_FROM = 3  # a remainder of 3..7 episodes is padded to 8 rather than stepped one by one
 NUM_MOTOR_BINDINGS = 4
@@ -43,8 +43,7 @@ _configured = False
 
 
 def cache_root() -> Path:
-    root = os.environ.get("DEEPPHY_CACHE_DIR")
-    return (Path(root) if root else Path.home() / ".cache" / "deepphy") / "kinetix"
+    return deepphy_cache_root() / "kinetix"
 
 
 def configure_jax() -> None:

@@ -20,20 +20,13 @@ from typing import Any
 
 import numpy as np
 
-from deepphy.envs.base import (
-    Action,
-    EnvOptions,
-    Environment,
-    Observation,
-    Planning,
-    StepResult,
-    Task,
-    seeded_rng,
-)
+from deepphy.envs.base import Action, EnvOptions, Environment, Observation, StepResult, Task
 from deepphy.envs.images import Image, draw_label, stack_frames
+from deepphy.envs.phyre import SPEC
 from deepphy.envs.phyre import scene as S
 from deepphy.envs.phyre.space import PhyreAction, PhyreSpace
 from deepphy.envs.phyre.templates import NUM_TEMPLATES, VARIANTS, templates, variant_scene
+from deepphy.seeding import seeded_rng
 
 TEST_FRACTION = 0.2
 
@@ -68,11 +61,7 @@ def parse_task_id(task_id_: str) -> tuple[str, int, int]:
 
 
 class PhyreEnv(Environment):
-    name = "phyre"
-    title = "PHYRE-B"
-    planning = Planning.IN_ADVANCE
-    max_attempts = 10
-    max_steps = 1
+    spec = SPEC
     Options = PhyreOptions
 
     def __init__(self, options: PhyreOptions | None = None) -> None:
@@ -98,7 +87,7 @@ class PhyreEnv(Environment):
                 raise ValueError(f"unknown PHYRE split {split!r} (within, cross, all)")
             for t, v in pairs:
                 if t in available:
-                    out.append(Task(env=cls.name, id=task_id(split, t, v), group=split,
+                    out.append(Task(env=SPEC.name, id=task_id(split, t, v), group=split,
                                     params={"template": t, "variant": v}))
         return out
 
@@ -133,7 +122,7 @@ class PhyreEnv(Environment):
         problem = S.placement_problem(self._scene, x, y, r)
         info: dict[str, Any] = {"x": x, "y": y, "r": r}
         if problem is not None:
-            return StepResult(done=True, success=False, invalid_reason=problem,
+            return StepResult(terminated=True, success=False, invalid_reason=problem,
                               feedback=f"invalid placement: {problem}; nothing was simulated", info=info)
         extra = S.ball(x, y, r, "red")
         world = S.World(self._scene, extra)
@@ -155,7 +144,8 @@ class PhyreEnv(Environment):
         imgs = [S.render(objects, st, walls, size=256) for _, st in frames]
         strip = stack_frames(imgs, [f"t={s / S.FPS:.1f}s" for s, _ in frames], height=256)
         return StepResult(
-            done=True,
+            terminated=outcome.reason != "time_out",
+            truncated=outcome.reason == "time_out",
             success=outcome.success,
             feedback=feedback,
             key_frames=[Image.from_array("outcome", "frames of what happened (left to right)", strip)],

@@ -30,7 +30,7 @@ from typing import Iterable
 
 import numpy as np
 
-from deepphy.envs.base import seeded_rng
+from deepphy.seeding import seeded_rng
 from deepphy.envs.phyre import scene as S
 from deepphy.envs.phyre.space import PhyreSpace
 

@@ -47,7 +47,7 @@ from typing import Callable
 
 import numpy as np
 
-from deepphy.envs.base import seeded_rng
+from deepphy.seeding import seeded_rng
 from deepphy.envs.phyre.scene import Scene
 
 NUM_TEMPLATES = 25

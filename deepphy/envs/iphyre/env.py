@@ -20,90 +20,20 @@ Decisions (documented in the README):
 from __future__ import annotations
 
 import functools
-import json
-import math
 import os
-from typing import Any, Literal, Sequence
+from typing import Any
 
 import cv2
 import numpy as np
-from pydantic import BaseModel, ConfigDict
 
-from deepphy.envs.base import (
-    Action,
-    ActionSpace,
-    Environment,
-    InvalidAction,
-    Observation,
-    Planning,
-    StepResult,
-    Task,
-)
+from deepphy.envs.base import Action, Environment, Observation, StepResult, Task
 from deepphy.envs.images import Image, draw_label, stack_frames
-from deepphy.envs.parsing import first_json_array
+from deepphy.envs.iphyre import SPEC
+from deepphy.envs.iphyre.space import MAX_TIME, IPhyrePlan, IPhyreSpace
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")  # iphyre imports pygame, which greets on stdout
 
-MAX_TIME = 15.0  # seconds simulated per attempt (iphyre's max_time)
-FPS = 60
 GROUPS = ("basic", "noisy", "compositional", "multi_ball")  # iphyre's FOLD_LIST, 10 games each
-MAX_CLICKS = 12  # more clicks than blocks is never useful; bounds the plan a model may send
-
-
-class Click(BaseModel):
-    model_config = ConfigDict(frozen=True)
-
-    time: float
-    index: int
-
-
-class IPhyrePlan(Action):
-    clicks: tuple[Click, ...]
-
-
-class IPhyreSpace(ActionSpace):
-    """Plans over `num_blocks` eliminable blocks, each removal at a time in [0, 15)."""
-
-    kind: Literal["iphyre_plan"] = "iphyre_plan"
-    num_blocks: int
-
-    def parse(self, text: str) -> IPhyrePlan:
-        raw = first_json_array(text)
-        if raw is None:
-            raise InvalidAction('no JSON array of {"time", "index"} objects found')
-        clicks = []
-        for item in raw:
-            if not isinstance(item, dict):
-                raise InvalidAction(f"plan entries must be objects with time and index, got {item!r}")
-            keys = {str(k).strip().lower(): v for k, v in item.items()}
-            if set(keys) != {"time", "index"}:
-                raise InvalidAction(f"each entry needs exactly the keys time and index, got {sorted(keys)}")
-            t, i = keys["time"], keys["index"]
-            if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t):
-                raise InvalidAction(f"time must be a number of seconds, got {t!r}")
-            if isinstance(i, bool) or not (isinstance(i, int) or (isinstance(i, float) and i.is_integer())):
-                raise InvalidAction(f"index must be an integer, got {i!r}")
-            if not 0.0 <= t < MAX_TIME:
-                raise InvalidAction(f"time {t} is outside [0, {MAX_TIME:g})")
-            if not 0 <= int(i) < self.num_blocks:
-                raise InvalidAction(f"index {int(i)} is not a gray block (0..{self.num_blocks - 1})")
-            clicks.append(Click(time=round(float(t), 4), index=int(i)))
-        if len(clicks) > MAX_CLICKS:
-            raise InvalidAction(f"at most {MAX_CLICKS} removals per plan, got {len(clicks)}")
-        return IPhyrePlan(clicks=tuple(sorted(clicks, key=lambda c: (c.time, c.index))))
-
-    def sample(self, rng: np.random.Generator, exclude: Sequence[Action] = ()) -> IPhyrePlan:
-        # MOCK as in the I-PHYRE baselines: remove 1-3 distinct blocks at uniform times.
-        n = int(rng.integers(1, min(3, self.num_blocks) + 1))
-        blocks = rng.choice(self.num_blocks, size=n, replace=False)
-        times = np.round(rng.uniform(0.0, MAX_TIME, size=n), 1)
-        times = np.minimum(times, MAX_TIME - 0.1)
-        clicks = [Click(time=float(t), index=int(b)) for t, b in zip(times, blocks)]
-        return IPhyrePlan(clicks=tuple(sorted(clicks, key=lambda c: (c.time, c.index))))
-
-    def format(self, action: Action) -> str:
-        assert isinstance(action, IPhyrePlan)
-        return json.dumps([{"time": c.time, "index": c.index} for c in action.clicks])
 
 
 # Colours (RGB) of the rendering; the prompt's legend names them.
@@ -113,11 +43,7 @@ BLOCK_RADIUS = 10  # iphyre's segment radius
 
 
 class IPhyreEnv(Environment):
-    name = "iphyre"
-    title = "I-PHYRE"
-    planning = Planning.IN_ADVANCE
-    max_attempts = 10
-    max_steps = 1
+    spec = SPEC
 
     def __init__(self, options=None) -> None:
         super().__init__(options)
@@ -130,7 +56,7 @@ class IPhyreEnv(Environment):
     def tasks(cls, options) -> list[Task]:
         from iphyre.games import GAMES
 
-        return [Task(env=cls.name, id=g, group=GROUPS[i // 10]) for i, g in enumerate(GAMES)]
+        return [Task(env=SPEC.name, id=g, group=GROUPS[i // 10]) for i, g in enumerate(GAMES)]
 
     # -- the contract ---------------------------------------------------------------
 
@@ -164,7 +90,8 @@ class IPhyreEnv(Environment):
         feedback += f"; {removed} of {len(clicks)} removal(s) took effect"
         strip = stack_frames([f for _, f in frames], [f"t={t:.1f}s" for t, _ in frames])
         return StepResult(
-            done=True,
+            terminated=success,
+            truncated=not success,  # the only way to fail: MAX_TIME ran out
             success=success,
             feedback=feedback,
             key_frames=[Image.from_array("outcome", "frames of what happened (left to right)", strip)],

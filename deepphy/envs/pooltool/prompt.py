@@ -1,13 +1,18 @@
 """Pooltool prompt: single-player nine-ball; choose the cue speed and where to strike the cue ball."""
 
-from deepphy.envs import Observation, Task
+from deepphy.envs.base import Observation, Task
+from deepphy.envs.pooltool.space import ACTIONS, MAX_SHOTS, SPEEDS, SPOT_OFFSETS
 from deepphy.prompts.base import EnvPrompt
+
+_EDGE = {0.5: "half a ball radius"}  # words for the edge spots' distance from the centre
 
 
 class PooltoolPrompt(EnvPrompt):
-    env = "pooltool"
-
     def rules(self, task: Task, observation: Observation) -> str:
+        speeds = list(SPEEDS)
+        speed_names = f"{', '.join(speeds[:-1])} or {speeds[-1]}"
+        metres = f"{', '.join(f'{v:g}' for v in list(SPEEDS.values())[:-1])} or {list(SPEEDS.values())[-1]:g}"
+        edge = _EDGE.get(SPOT_OFFSETS["top-centre"][1], f"{SPOT_OFFSETS['top-centre'][1]:g} ball radii")
         return f"""You are playing nine-ball pool alone ("{task.id}"), one shot at a time.
 
 The image is the table seen from directly above:
@@ -23,7 +28,7 @@ The image is the table seen from directly above:
   ball's path in white, each other ball's in its own colour).
 The text under the image lists the balls still on the table and their positions.
 
-Goal: pot the 9-ball on a legal shot, within 15 shots in total. The 9-ball counts whenever
+Goal: pot the 9-ball on a legal shot, within {MAX_SHOTS} shots in total. The 9-ball counts whenever
 it drops on a legal shot, even if other balls are still on the table (for example when the
 target ball knocks it in).
 
@@ -44,7 +49,7 @@ the way). Balls potted on a foul stay down, except the 9-ball, which is put back
 spot in the right half of the table.
 
 Action syntax (one line): Speed: <speed>, Strikespot: <spot>
-- speed is Low, Medium or High: the cue hits the cue ball at 2, 5 or 8 metres per second.
+- speed is {speed_names}: the cue hits the cue ball at {metres} metres per second.
 - spot is one of nine points on the cue ball, as seen by a player standing behind the
   cue ball and looking along the dashed line:
     top-left     top-centre     top-right
@@ -53,9 +58,9 @@ Action syntax (one line): Speed: <speed>, Strikespot: <spot>
   Top spots give topspin (after hitting a ball the cue ball keeps rolling forward), bottom
   spots give backspin (the cue ball stops or comes back), middle-centre gives no spin, and
   left / right spots give side spin, which changes how the cue ball leaves a cushion and
-  pushes it slightly off the line, to the side opposite the spin. The edge spots lie half
-  a ball radius from the centre; the corner spots lie the same distance away, diagonally.
-There are 27 actions in all. A reply that does not give one speed and one spot from these
+  pushes it slightly off the line, to the side opposite the spin. The edge spots lie {edge.split(' ', 1)[0]}
+  {edge.split(' ', 1)[1]} from the centre; the corner spots lie the same distance away, diagonally.
+There are {len(ACTIONS)} actions in all. A reply that does not give one speed and one spot from these
 lists is an invalid action: it is recorded as such and ends the game unsolved."""
 
     def prediction_hint(self) -> str:

@@ -1,13 +1,13 @@
 """Kinetix prompt: drive a level's motors and thrusters so a green shape reaches a blue one."""
 
-from deepphy.envs import Observation, Task
+from deepphy.envs.base import Observation, Task
+from deepphy.envs.kinetix.levels import MAX_DECISIONS, SECONDS_PER_DECISION
 from deepphy.prompts.base import EnvPrompt
 
 SIZE_WORDS = {"S": "small", "M": "medium", "L": "large"}
 
 
 class KinetixPrompt(EnvPrompt):
-    env = "kinetix"
     recent_steps_shown = 5  # the last 5 frames, actions and goal distances
 
     def rules(self, task: Task, observation: Observation) -> str:
@@ -36,6 +36,7 @@ class KinetixPrompt(EnvPrompt):
             entries.append(
                 f"- {t} thruster entr{'y' if t == 1 else 'ies'} ({', '.join(labels[m:])}): 0 = off, 1 = fire;"
             )
+        w, h = observation.images[0].size
         return f"""You are controlling a machine in a 2D physics level of Kinetix ("{task.id}", a {SIZE_WORDS.get(task.group, task.group)} level). Gravity pulls down.
 
 What the image shows (white background):
@@ -52,12 +53,12 @@ What the image shows (white background):
 
 Goal: make a green shape touch a blue shape. Touching red, or running out of time, fails.
 
-How you act: every decision sets all controls at once and is held for about 0.53 s of
-simulated time; then you see the new scene and decide again. You have at most 16 decisions.
+How you act: every decision sets all controls at once and is held for about {SECONDS_PER_DECISION:.2f} s of
+simulated time; then you see the new scene and decide again. You have at most {MAX_DECISIONS} decisions.
 A decision is a JSON list of exactly {m + t} integer{'s' if m + t != 1 else ''}, in this order: [{', '.join(labels)}].
 {chr(10).join(entries)}
 After each decision you are told the goal distance: the distance in pixels between the centre of
-the green shape and the centre of the nearest blue shape (the image is 500x500 pixels).
+the green shape and the centre of the nearest blue shape (the image is {w}x{h} pixels).
 
 A reply that does not contain such a list, has the wrong number of entries, or uses a value out of
 range is an invalid action and ends the attempt as a failure."""
@@ -68,4 +69,4 @@ range is an invalid action and ends the attempt as a failure."""
     def example(self, observation: Observation) -> str:
         space = observation.action_space
         m, t = space.num_motors, space.num_thrusters  # type: ignore[attr-defined]
-        return str([1] * m + [1] * t).replace(" ", " ")
+        return str([1] * m + [1] * t)

@@ -1,30 +1,31 @@
 """I-PHYRE prompt: plan the removal of gray blocks so that every red ball falls out."""
 
-from deepphy.envs import Observation, Task
+from deepphy.envs.base import Observation, Task
+from deepphy.envs.iphyre.space import FPS, MAX_TIME
 from deepphy.prompts.base import EnvPrompt
 
 
 class IPhyrePrompt(EnvPrompt):
-    env = "iphyre"
-
     def rules(self, task: Task, observation: Observation) -> str:
         n = observation.action_space.num_blocks  # type: ignore[attr-defined]
+        w, h = observation.images[0].size
+        t = f"{MAX_TIME:g}"
         return f"""You are solving an I-PHYRE physics puzzle ("{task.id}").
 
-The scene (600x600 pixels, gravity pulls down) shows:
+The scene ({w}x{h} pixels, gravity pulls down) shows:
 - red circles: balls, moved only by physics;
 - gray bars: blocks you may remove; each carries its index (0..{n - 1}) in a yellow box in the annotated image;
 - black bars: fixed blocks that cannot be removed;
 - blue bars: blocks that move under physics and cannot be removed;
 - green lines: joints or springs connecting two objects.
 
-Goal: every red ball must fall below the bottom edge of the scene within 15 seconds.
+Goal: every red ball must fall below the bottom edge of the scene within {t} seconds.
 
 Your only way to act is to remove gray blocks. You plan every removal in advance, before
 the simulation starts; the plan then runs to the end without further input. A plan is a
-JSON array of objects, each with "time" (seconds after the start, 0 <= time < 15) and
+JSON array of objects, each with "time" (seconds after the start, 0 <= time < {t}) and
 "index" (a gray block's index, 0..{n - 1}). An empty array [] means: remove nothing.
-Removals happen in time order, at most one per 1/60 s. Removing a block that is already
+Removals happen in time order, at most one per 1/{FPS} s. Removing a block that is already
 gone has no effect.
 
 A plan that is not such an array, or has a time or index outside those ranges, is an

@@ -1,0 +1,63 @@
+"""Every agent a run can evaluate, by name: deepphy's random baselines and the model
+endpoints of a models file. All are `ModelClient`s, so a baseline's answer goes through
+the same prompt, parser and records as a real model's.
+
+MOCK answers, in the environment's syntax, a uniformly random valid action drawn from a
+generator seeded by (seed, task, run, attempt, step): its text goes through the same
+parser as a real model's, and a run's actions do not depend on scheduling.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from deepphy.envs import ActionSpace, get_spec
+from deepphy.models import ModelClient, ModelConfig, UnknownModel, client_from_config, load_models
+from deepphy.models.base import ModelRequest, ModelResponse, RequestContext
+from deepphy.models.limiter import Limiter
+from deepphy.prompts import mock_reply
+from deepphy.seeding import seeded_rng
+
+
+def mock_action_text(ctx: RequestContext) -> str:
+    """MOCK's action for a request: depends only on the seed and the request's position."""
+    get_spec(ctx.env).load_package()  # registers the environment's action spaces
+    space = ActionSpace.from_json(ctx.action_space)
+    rng = seeded_rng("mock", ctx.seed, ctx.env, ctx.task_id, ctx.run, ctx.attempt, ctx.step)
+    tried = []
+    for text in ctx.tried:
+        try:
+            tried.append(space.parse(text))
+        except ValueError:
+            pass
+    return space.format(space.sample(rng, exclude=tried))
+
+
+class MockModel(ModelClient):
+    name = "mock"
+
+    async def complete(self, request: ModelRequest) -> ModelResponse:
+        ctx = request.context
+        return ModelResponse(text=mock_reply(ctx.format, mock_action_text(ctx)))
+
+
+BASELINES: dict[str, type[ModelClient]] = {"mock": MockModel}
+
+
+def endpoint_config(name: str, models_file: str | Path | None = None) -> ModelConfig | None:
+    """The models-file entry of an endpoint; None for a baseline. UnknownModel otherwise."""
+    if name in BASELINES:
+        return None
+    models = load_models(models_file)
+    if name not in models:
+        raise UnknownModel(name, [*BASELINES, *sorted(models)])
+    return models[name]
+
+
+def make_agent(name: str, models_file: str | Path | None = None, limiter: Limiter | None = None) -> ModelClient:
+    """The client for `name`: a baseline, or the endpoint's HTTP client (its key read from
+    the environment; `limiter` the endpoint's shared limiter, None for an in-process one)."""
+    config = endpoint_config(name, models_file)
+    if config is None:
+        return BASELINES[name]()
+    return client_from_config(config, limiter=limiter)

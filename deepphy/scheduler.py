@@ -1,0 +1,234 @@
+"""The asyncio scheduler: keeps many episodes in flight across environment and model actors.
+
+An episode is one (task, run). Its attempts are sequential (each sees the history of the
+failed ones) and each attempt is `deepphy.protocol.run_attempt`; episodes are
+independent, so up to `max_in_flight` of them progress at once. The scheduler adds only
+what Ray needs: placement (the least-loaded environment worker), retries (an attempt
+whose worker died or whose model failed is re-run from its start), isolation (an
+attempt that raises anything else is logged to the run directory and its episode left
+for a resume; the other episodes go on) and the cost budget.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+import traceback
+from collections import defaultdict
+from typing import Any, Sequence
+
+import ray
+from ray.exceptions import ActorDiedError, ActorUnavailableError, RayActorError
+
+from deepphy.actors.env_worker import LostEpisode
+from deepphy.config import RunConfig, RuntimeOptions
+from deepphy.envs import Action, EnvSpec, Observation, StepResult, Task
+from deepphy.models import ModelError, ModelRequest, ModelResponse
+from deepphy.protocol import run_attempt
+from deepphy.runs.records import AttemptRecord, episode_finished
+from deepphy.runs.store import RunStore
+
+log = logging.getLogger(__name__)
+
+WORKER_LOST = (LostEpisode, ActorDiedError, ActorUnavailableError, RayActorError)
+
+
+class WorkerLost(RuntimeError):
+    """An environment worker died or was restarted during an attempt."""
+
+
+class ModelUnavailable(RuntimeError):
+    """A model request failed for good (after the client's own retries)."""
+
+    def __init__(self, message: str, retries: int = 0) -> None:
+        super().__init__(message)
+        self.retries = retries  # transport retries the failed request spent
+
+
+class BudgetExhausted(RuntimeError):
+    """The run's cost budget (--max-cost) is spent; the attempt is left for a resume."""
+
+
+class WorkerEnv:
+    """The protocol's `EnvHandle` over one environment worker actor, for one attempt."""
+
+    def __init__(self, worker: Any, episode: str, timeout_s: float) -> None:
+        self.worker, self.episode, self.timeout_s = worker, episode, timeout_s
+
+    async def reset(self, task: Task) -> Observation:
+        return await self._call(self.worker.reset.remote(self.episode, task))
+
+    async def step(self, action: Action) -> StepResult:
+        return await self._call(self.worker.step.remote(self.episode, action))
+
+    def release(self) -> None:
+        try:
+            self.worker.release.remote(self.episode)
+        except Exception:  # noqa: BLE001 - a dead worker holds nothing to release
+            pass
+
+    async def _call(self, ref: Any) -> Any:
+        try:
+            return await asyncio.wait_for(ref, timeout=self.timeout_s)
+        except WORKER_LOST as e:
+            raise WorkerLost(type(e).__name__) from e
+        except asyncio.TimeoutError:
+            ray.cancel(ref, force=False)
+            raise WorkerLost(f"no answer within {self.timeout_s:g} s") from None
+
+
+class Scheduler:
+    def __init__(
+        self,
+        config: RunConfig,
+        runtime: RuntimeOptions,
+        spec: EnvSpec,
+        tasks: Sequence[Task],
+        store: RunStore,
+        env_workers: list[Any],
+        model_worker: Any,
+        metrics: Any,
+        k_max: int,
+        max_model_requeues: int = 5,
+    ) -> None:
+        self.config = config
+        self.runtime = runtime
+        self.spec = spec
+        self.prompt = spec.load_prompt()
+        self.tasks = list(tasks)
+        self.store = store
+        self.env_workers = env_workers
+        self.load = [0] * len(env_workers)  # live episodes per worker
+        self.model_worker = model_worker
+        self.metrics = metrics
+        self.k_max = k_max
+        self.max_model_requeues = max_model_requeues
+        self.failed: list[str] = []  # episodes left unfinished (model or worker failures, budget), for the caller
+        self.errored: list[str] = []  # episodes whose attempt raised an unexpected error
+        self.stop_requested = False
+        self.spent_usd = 0.0  # model cost of the run so far (stored records + requests of this session)
+        self.budget_hit = False
+        self.in_flight = 0
+        self.decisions = 0  # model requests answered in this session
+
+    # -- top level --------------------------------------------------------------------
+
+    async def run(self, existing: Sequence[AttemptRecord]) -> None:
+        records: dict[tuple[str, int], list[AttemptRecord]] = defaultdict(list)
+        for r in existing:
+            records[(r.task, r.run)].append(r)
+        todo = [
+            (task, run)
+            for run in range(self.config.runs)
+            for task in self.tasks
+            if not episode_finished(records[(task.id, run)], self.k_max)
+        ]
+        gate = asyncio.Semaphore(self.runtime.max_in_flight)
+        self._charge(sum(r.model_stats.usage.cost_usd for r in existing))
+
+        async def guarded(task: Task, run: int) -> None:
+            async with gate:
+                if self.stop_requested:
+                    return
+                self.in_flight += 1
+                try:
+                    await self._episode(task, run, records[(task.id, run)])
+                except (ModelUnavailable, WorkerLost, BudgetExhausted) as e:
+                    self.failed.append(f"{task.id} run {run}: {e}")
+                    log.warning("episode %s run %d left unfinished: %s", task.id, run, e)
+                finally:
+                    self.in_flight -= 1
+
+        await asyncio.gather(*(guarded(t, r) for t, r in todo))
+
+    async def _episode(self, task: Task, run: int, records: list[AttemptRecord]) -> None:
+        while not episode_finished(records, self.k_max) and not self.stop_requested:
+            attempt = len(records) + 1
+            try:
+                record = await self._attempt_with_retries(task, run, attempt, records)
+            except (ModelUnavailable, WorkerLost, BudgetExhausted, asyncio.CancelledError):
+                raise
+            except Exception as error:  # noqa: BLE001 - one attempt's bug must not end the run
+                self._record_error(task, run, attempt, error)
+                return
+            self.store.append(record)
+            records.append(record)
+            self.metrics.add.remote([record.summary()])
+
+    async def _attempt_with_retries(
+        self, task: Task, run: int, attempt: int, previous: list[AttemptRecord]
+    ) -> AttemptRecord:
+        """Run one attempt; re-run it from the start if its worker died or the model failed."""
+        lost = model_errors = failed_retries = 0
+        while True:
+            try:
+                record = await self._attempt(task, run, attempt, previous)
+            except WorkerLost as e:
+                lost += 1
+                if lost > self.runtime.attempt_retries:
+                    raise
+                log.warning("attempt %s/%d/%d lost its worker (%s); re-running it", task.id, run, attempt, e)
+                continue
+            except ModelUnavailable as e:
+                model_errors += 1
+                failed_retries += e.retries
+                if model_errors > self.max_model_requeues:
+                    raise
+                log.warning("attempt %s/%d/%d: model error (%s); re-queued", task.id, run, attempt, e)
+                await asyncio.sleep(min(60.0, 2.0**model_errors))
+                continue
+            record.model_stats.model_errors += model_errors
+            record.model_stats.retries += failed_retries
+            return record
+
+    async def _attempt(self, task: Task, run: int, attempt: int, previous: list[AttemptRecord]) -> AttemptRecord:
+        index = min(range(len(self.env_workers)), key=lambda i: self.load[i])
+        env = WorkerEnv(self.env_workers[index], f"{task.id}|{run}|{attempt}|{time.monotonic_ns()}",
+                        self.runtime.step_timeout_s)
+        self.load[index] += 1
+        try:
+            return await run_attempt(self.spec, self.prompt, self.config, task, run, attempt, previous,
+                                     env, self, self.store)
+        finally:
+            self.load[index] -= 1
+            env.release()
+
+    # -- the model, as the protocol's ModelHandle: budget, timeout, errors ---------------
+
+    async def complete(self, request: ModelRequest) -> ModelResponse:
+        if self.budget_hit:  # abandon the attempt unrecorded: a resume re-runs it
+            raise BudgetExhausted(f"cost budget ${self.runtime.max_cost_usd:g} reached (${self.spent_usd:.4f} spent)")
+        ref = self.model_worker.complete.remote(request)
+        try:
+            response = await asyncio.wait_for(ref, timeout=self.runtime.model_timeout_s)
+        except ModelError as e:
+            raise ModelUnavailable(str(e), retries=getattr(e, "retries", 0)) from e
+        except (asyncio.TimeoutError, RayActorError) as e:
+            raise ModelUnavailable(f"model worker: {type(e).__name__}") from e
+        self.decisions += 1
+        self._charge(response.usage.cost_usd)
+        return response
+
+    def _charge(self, cost_usd: float) -> None:
+        self.spent_usd += cost_usd
+        limit = self.runtime.max_cost_usd
+        if limit is not None and self.spent_usd >= limit and not self.budget_hit:
+            self.budget_hit = True
+            self.stop_requested = True
+            self.failed.append(f"cost budget ${limit:g} reached (${self.spent_usd:.4f} spent); raise --max-cost to continue")
+            log.warning("cost budget $%g reached ($%.4f spent): stopping; raise --max-cost and resume", limit, self.spent_usd)
+
+    # -- isolation ----------------------------------------------------------------------
+
+    def _record_error(self, task: Task, run: int, attempt: int, error: BaseException) -> None:
+        self.errored.append(f"{task.id} run {run} attempt {attempt}: {type(error).__name__}: {error}"[:300])
+        self.store.append_error({
+            "time": time.time(), "task": task.id, "run": run, "attempt": attempt,
+            "type": type(error).__name__, "message": str(error)[:2000],
+            "traceback": "".join(traceback.format_exception(error))[-20000:],
+        })
+
+    def activity(self) -> dict[str, Any]:
+        """Counters for the progress views (pushed to the metrics actor by the driver)."""
+        return {"in_flight": self.in_flight, "decisions": self.decisions, "errored": len(self.errored)}

@@ -1,0 +1,68 @@
+"""The environment contract (deepphy/envs/checker.py), over every registered environment,
+and a test-only environment that gets the checks and the whole pipeline for free."""
+
+from __future__ import annotations
+
+import pytest
+
+from deepphy.envs import get_spec, register, specs, unregister
+from deepphy.envs.checker import check_env
+
+BUILT_IN = sorted(specs())
+
+
+@pytest.mark.parametrize("name", BUILT_IN)
+def test_every_registered_environment_keeps_the_contract(name):
+    assert check_env(get_spec(name)) == []
+
+
+@pytest.fixture
+def toy():
+    import toy_env
+
+    register(toy_env.SPEC)
+    yield toy_env.SPEC
+    unregister(toy_env.SPEC.name)
+
+
+def test_a_new_environment_is_one_package_and_gets_the_checks(toy):
+    assert toy.name in specs() and toy.name not in BUILT_IN
+    assert check_env(toy, tasks_checked=10) == []
+
+
+@pytest.mark.parametrize("broken, expected", [
+    ("random_start", "reset is not deterministic"),
+    ("unsafe_ids", "not filesystem-safe"),
+    ("never_ends", "did not end within max_steps = 4"),
+    ("bad_example", "example action does not parse"),
+])
+def test_a_broken_rule_is_reported(broken, expected):
+    from toy_env import broken as B
+
+    cls = {"random_start": B.RandomStart, "unsafe_ids": B.UnsafeIds, "never_ends": B.NeverEnds,
+           "bad_example": B.BadExample}[broken]
+    problems = check_env(cls.spec, fresh_process=False)
+    assert any(expected in p for p in problems), problems
+
+
+def test_the_toy_environment_runs_through_the_whole_pipeline(ray_cluster, toy, tmp_path):
+    """Nothing outside its package names the toy: run, records, history and report work."""
+    from deepphy.config import RunConfig, RuntimeOptions
+    from deepphy.metrics.report import render_text, report_of
+    from deepphy.runner import evaluate
+    from deepphy.runs.store import read_records
+
+    config = RunConfig(env=toy.name, runs=2, seed=3)
+    outcome = evaluate(config, tmp_path, RuntimeOptions(progress=False, env_workers=2))
+    assert outcome.complete and outcome.episodes_total == 20
+    records = read_records(tmp_path)
+    assert {r.env for r in records} == {"toy_cart"} and max(r.attempt for r in records) <= 2
+    assert any(len(r.steps) > 1 for r in records) and all(len(r.steps) <= 4 for r in records)
+    assert all(r.truncated == (not r.success) for r in records)
+    second = [r for r in records if r.attempt == 2]
+    assert second, "some episode needed a second attempt"
+    prompt = (tmp_path / "prompts" / f"{second[0].steps[0].prompt}.json").read_text()
+    assert "Your previous 1 attempt(s) at this task failed" in prompt
+    report = report_of(tmp_path)
+    assert set(report["overall"]["mean"]["success_within_steps"]) == {"1", "2", "4"}
+    assert "Push1" in render_text(report) and set(report["groups"]) == {"near", "far"}
