@@ -35,4 +35,5 @@ invalid attempt and counts as a failed attempt."""
         return "where each red ball will go, and whether all of them will leave the scene"
 
     def example(self, observation: Observation) -> str:
-        return '[{"time": 1.5, "index": 0}, {"time": 4.0, "index": 2}]'
+        last = observation.action_space.num_blocks - 1  # type: ignore[attr-defined]
+        return f'[{{"time": 1.5, "index": 0}}, {{"time": 4.0, "index": {last}}}]'

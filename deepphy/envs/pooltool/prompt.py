@@ -4,15 +4,13 @@ from deepphy.envs.base import Observation, Task
 from deepphy.envs.pooltool.space import ACTIONS, MAX_SHOTS, SPEEDS, SPOT_OFFSETS
 from deepphy.prompts.base import EnvPrompt
 
-_EDGE = {0.5: "half a ball radius"}  # words for the edge spots' distance from the centre
-
 
 class PooltoolPrompt(EnvPrompt):
     def rules(self, task: Task, observation: Observation) -> str:
         speeds = list(SPEEDS)
         speed_names = f"{', '.join(speeds[:-1])} or {speeds[-1]}"
         metres = f"{', '.join(f'{v:g}' for v in list(SPEEDS.values())[:-1])} or {list(SPEEDS.values())[-1]:g}"
-        edge = _EDGE.get(SPOT_OFFSETS["top-centre"][1], f"{SPOT_OFFSETS['top-centre'][1]:g} ball radii")
+        edge = SPOT_OFFSETS["top-centre"][1]  # the edge spots' distance from the centre, in ball radii
         return f"""You are playing nine-ball pool alone ("{task.id}"), one shot at a time.
 
 The image is the table seen from directly above:
@@ -58,8 +56,8 @@ Action syntax (one line): Speed: <speed>, Strikespot: <spot>
   Top spots give topspin (after hitting a ball the cue ball keeps rolling forward), bottom
   spots give backspin (the cue ball stops or comes back), middle-centre gives no spin, and
   left / right spots give side spin, which changes how the cue ball leaves a cushion and
-  pushes it slightly off the line, to the side opposite the spin. The edge spots lie {edge.split(' ', 1)[0]}
-  {edge.split(' ', 1)[1]} from the centre; the corner spots lie the same distance away, diagonally.
+  pushes it slightly off the line, to the side opposite the spin. The edge spots lie {edge:g}
+  ball radius from the centre; the corner spots lie the same distance away, diagonally.
 There are {len(ACTIONS)} actions in all. A reply that does not give one speed and one spot from these
 lists is an invalid action: it is recorded as such and ends the game unsolved."""
 
