@@ -9,8 +9,9 @@ A provider subclass says only how to build its request and read its response
   limiter; by default a client limits itself in-process (`LocalLimiter`);
 - retries with exponential backoff and jitter on 429, 408, 409, 5xx, timeouts,
   connection errors and unusable 200s (malformed JSON, no choices); `Retry-After` /
-  `retry-after-ms` is honoured (capped at max_retry_after_s); at most max_retries; then
-  `ModelError(retries=..., kind=...)`. Other 4xx fail at once;
+  `retry-after-ms` (Gemini: RetryInfo in the error body) is honoured (capped at
+  max_retry_after_s); at most max_retries; then `ModelError(retries=..., kind=...)`.
+  Other 4xx fail at once;
 - the key is read from the environment, held as a SecretStr, never pickled, never in
   repr, and scrubbed from every error text.
 """
@@ -29,7 +30,9 @@ from deepphy.chat import Message
 from deepphy.models.base import ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext, Usage
 from deepphy.models.config import ModelConfig
 from deepphy.models.limiter import Limiter, LocalLimiter
-from deepphy.models.wire import CONTEXT_HEADER, encode_context, estimate_input_tokens, limit_images, parse_retry_after
+from deepphy.models.wire import (
+    CONTEXT_HEADER, encode_context, estimate_input_tokens, limit_images, merge_body, parse_retry_after,
+)
 from deepphy.seeding import seeded_rng
 
 RETRYABLE_STATUS = {408, 409, 429}  # plus every 5xx (Anthropic's 529 "overloaded" included)
@@ -141,7 +144,7 @@ class HTTPModelClient(ModelClient):
         if status != 200:
             retryable = status in RETRYABLE_STATUS or status >= 500
             snippet = self._redact(raw[:300].decode("utf-8", "replace")).replace("\n", " ")
-            raise _Failure(f"http_{status}", f"HTTP {status}: {snippet}", retryable, parse_retry_after(rheaders))
+            raise _Failure(f"http_{status}", f"HTTP {status}: {snippet}", retryable, parse_retry_after(rheaders, body=raw))
         try:
             data = json.loads(raw)
         except ValueError:
@@ -159,7 +162,7 @@ class HTTPModelClient(ModelClient):
         cfg = self.config
         messages, dropped = limit_images(request.messages, cfg.resolved_max_images)
         max_tokens = cfg.max_tokens or request.max_tokens
-        body = {**self.build_body(request, messages, max_tokens), **cfg.extra_body}
+        body = merge_body(self.build_body(request, messages, max_tokens), cfg.extra_body)
         payload = json.dumps(body).encode()
         headers = {"Content-Type": "application/json", **self.static_headers()}
         if cfg.send_context:

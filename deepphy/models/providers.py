@@ -6,8 +6,9 @@
   `temperature`, `max_tokens` (or `max_completion_tokens`), `seed`; bearer key.
 - Anthropic Messages (POST {base}/messages): `system` as a top-level string, content
   blocks `{"type": "text"}` / `{"type": "image", "source": {"type": "base64",
-  "media_type": "image/png", "data": ...}}`, `max_tokens` required; headers `x-api-key`
-  and `anthropic-version`.
+  "media_type": "image/png", "data": ...}}`, `max_tokens` required, `temperature` only
+  before API version 2026-10-21 (which removed the sampling parameters: any of them is a
+  400); headers `x-api-key` and `anthropic-version`.
 - Gemini generateContent (POST {base}/models/{model}:generateContent): `contents` of
   `{"role": "user"|"model", "parts": [{"text"} | {"inlineData": {"mimeType", "data"}}]}`,
   `systemInstruction`, `generationConfig` {temperature, maxOutputTokens, seed}; header
@@ -18,14 +19,17 @@ from __future__ import annotations
 
 from typing import Any
 
+from deepphy.chat import ImagePart, Message, TextPart
 from deepphy.models.base import ModelRequest
 from deepphy.models.http import EmptyReply, HTTPModelClient, request_seed
-from deepphy.models.wire import png_b64
-from deepphy.chat import ImagePart, Message, TextPart
+from deepphy.models.wire import ANTHROPIC_NO_SAMPLING_FROM, png_b64
 
 
-def _system_text(messages: list[Message]) -> str:
-    return "\n\n".join(m.text for m in messages if m.role == "system")
+def _system_text(messages: list[Message], provider: str) -> str:
+    system = [m for m in messages if m.role == "system"]
+    if any(m.images for m in system):  # every provider takes system text only
+        raise ValueError(f"{provider}: a system message cannot carry images")
+    return "\n\n".join(m.text for m in system)
 
 
 class OpenAIChatClient(HTTPModelClient):
@@ -37,7 +41,9 @@ class OpenAIChatClient(HTTPModelClient):
 
     @staticmethod
     def message(m: Message) -> dict[str, Any]:
-        if m.role != "user" and not m.images:
+        if m.role != "user":
+            if m.images:  # system and assistant content is text (or refusal) parts only
+                raise ValueError(f"openai: a {m.role} message cannot carry images")
             return {"role": m.role, "content": m.text}
         content: list[dict[str, Any]] = []
         for p in m.content:
@@ -93,10 +99,10 @@ class AnthropicClient(HTTPModelClient):
                 {"role": m.role, "content": [self.block(p) for p in m.content]} for m in messages if m.role != "system"
             ],
         }
-        system = _system_text(messages)
+        system = _system_text(messages, "anthropic")
         if system:
             body["system"] = system
-        if cfg.send_temperature:
+        if cfg.send_temperature and cfg.anthropic_version < ANTHROPIC_NO_SAMPLING_FROM:
             body["temperature"] = request.temperature
         return body  # the Messages API takes no seed
 
@@ -136,7 +142,7 @@ class GeminiClient(HTTPModelClient):
                 if m.role != "system"
             ]
         }
-        system = _system_text(messages)
+        system = _system_text(messages, "gemini")
         if system:
             body["systemInstruction"] = {"parts": [{"text": system}]}
         gen: dict[str, Any] = {"maxOutputTokens": max_tokens}

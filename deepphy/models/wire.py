@@ -1,15 +1,17 @@
 """Helpers shared by the HTTP clients and the local server: context header, image
-budget, token estimates, Retry-After."""
+budget, token estimates, retry hints, extra body fields."""
 
 from __future__ import annotations
 
 import base64
 import email.utils
+import json
 import math
+import re
 import struct
 import time
 import zlib
-from typing import Mapping
+from typing import Any, Mapping
 
 from deepphy.chat import ImagePart, Message, TextPart
 from deepphy.models.base import RequestContext
@@ -19,6 +21,10 @@ from deepphy.models.base import RequestContext
 # it in this header as base64url(zlib(JSON)); the request body stays exactly what a real
 # provider would get.
 CONTEXT_HEADER = "X-Deepphy-Context"
+
+# The first Anthropic API version (versions are ISO dates) whose Messages API has no
+# sampling parameters: temperature, top_p or top_k is a 400 there, whatever its value.
+ANTHROPIC_NO_SAMPLING_FROM = "2026-10-21"
 
 
 def encode_context(ctx: RequestContext) -> str:
@@ -79,8 +85,25 @@ def png_b64(png: bytes) -> str:
     return base64.b64encode(png).decode("ascii")
 
 
-def parse_retry_after(headers: Mapping[str, str], now: float | None = None) -> float | None:
-    """Seconds to wait from `retry-after-ms`, or `Retry-After` (seconds or an HTTP date)."""
+def merge_body(body: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    """`body` with `extra` merged in, objects key by key: an extra
+    `{"generationConfig": {"thinkingConfig": ...}}` adds to our generationConfig instead of
+    replacing it (and with it maxOutputTokens, temperature and seed)."""
+    out = dict(body)
+    for key, value in extra.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), dict):
+            out[key] = merge_body(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+_DURATION = re.compile(r"^\s*(\d+(?:\.\d*)?)s\s*$")
+
+
+def parse_retry_after(headers: Mapping[str, str], now: float | None = None, body: bytes = b"") -> float | None:
+    """Seconds to wait from `retry-after-ms`, or `Retry-After` (seconds or an HTTP date), or
+    else from the error body's google.rpc.RetryInfo `retryDelay` (how Gemini says it)."""
     ms = headers.get("retry-after-ms")
     if ms:
         try:
@@ -89,7 +112,7 @@ def parse_retry_after(headers: Mapping[str, str], now: float | None = None) -> f
             pass
     value = headers.get("Retry-After")
     if not value:
-        return None
+        return retry_info_delay(body)
     try:
         return max(0.0, float(value))
     except ValueError:
@@ -99,3 +122,17 @@ def parse_retry_after(headers: Mapping[str, str], now: float | None = None) -> f
     except (TypeError, ValueError):
         return None
     return max(0.0, when - (time.time() if now is None else now))
+
+
+def retry_info_delay(body: bytes) -> float | None:
+    """`retryDelay` (a protobuf Duration such as "22s") of a google.rpc.RetryInfo detail in a
+    {"error": {"details": [...]}} body; None if there is none."""
+    if b"RetryInfo" not in body:
+        return None
+    try:
+        details = json.loads(body)["error"]["details"]
+        delays = [d["retryDelay"] for d in details if str(d.get("@type", "")).endswith("google.rpc.RetryInfo")]
+    except (ValueError, KeyError, TypeError, AttributeError):
+        return None
+    match = _DURATION.match(str(delays[0])) if delays else None
+    return float(match.group(1)) if match else None

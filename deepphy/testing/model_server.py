@@ -7,7 +7,8 @@ Routes (real request/response JSON, status codes and headers):
 - POST /v1/messages                            Anthropic Messages
 - POST /v1beta/models/{model}:generateContent  Gemini
 - GET  /stats                                  arrival times and counters (?arrivals=0 to omit times)
-- GET  /admin/bodies                           the last --record-bodies request bodies (for tests)
+- GET  /admin/bodies                           the last --record-bodies requests: path, headers
+                                               (credentials masked: "Bearer ***"), body (for tests)
 - POST /admin/config                           change latency / faults at run time (JSON, partial)
 - POST /admin/reset                            clear arrivals, counters and fault history
 - GET  /health
@@ -20,7 +21,12 @@ server answers `mock_reply(ctx.format, mock_action_text(ctx))`, which is byte fo
 what `deepphy.agents.MockModel` returns for the same request. Without the header it
 answers 400.
 
-Faults (at `--fault-rate`, kinds from `--faults`): `429` (with Retry-After), `500`,
+Errors come in each provider's documented shape, with its status codes, request-id
+headers and retry hint (see the format classes; tests/test_sdk_conformance.py parses them
+with the official SDKs).
+
+Faults (at `--fault-rate`, kinds from `--faults`): `429` (with Retry-After; Gemini: a
+RetryInfo detail in the body), `500`,
 `hang` (no answer for --hang seconds, past any sane client timeout), `malformed` (200
 with truncated JSON), `empty` (200 with no choices / content / candidates), `prose` (200
 with a reply that contains no action). Whether a request is faulted, and how, depends
@@ -40,6 +46,7 @@ import base64
 import hashlib
 import json
 import os
+import re
 import secrets
 import sys
 import threading
@@ -50,7 +57,7 @@ from typing import Any
 from aiohttp import web
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from deepphy.models.wire import CONTEXT_HEADER, decode_context, image_tokens, text_tokens
+from deepphy.models.wire import ANTHROPIC_NO_SAMPLING_FROM, CONTEXT_HEADER, decode_context, image_tokens, text_tokens
 from deepphy.seeding import seeded_rng
 
 FAULT_KINDS = ("429", "500", "hang", "malformed", "empty", "prose")
@@ -95,50 +102,98 @@ def _rng(*keys: Any):
     return seeded_rng("model-server", *keys)
 
 
+_URLSAFE_TO_STD = str.maketrans("-_", "+/")
+
+
 def _b64_png_tokens(data: str) -> int:
+    # Either base64 alphabet: the Gemini API (proto3 JSON bytes) accepts both, and
+    # google-genai sends the URL-safe one.
     try:
-        head = base64.b64decode(data[:44])
+        head = base64.b64decode(data[:44].translate(_URLSAFE_TO_STD))
     except ValueError:
         return 258
     return image_tokens(head + b"\0" * 24)
 
 
-class BadRequest(Exception):
-    pass
+class ApiError(Exception):
+    """An error answer. Each format writes it in its provider's own shape; `code` is the
+    provider's machine-readable code (OpenAI `error.code`, Gemini ErrorInfo `reason`)."""
+
+    def __init__(self, status: int, message: str, *, code: str | None = None, param: str | None = None,
+                 retry_after_s: float | None = None) -> None:
+        super().__init__(message)
+        self.status, self.message, self.code, self.param, self.retry_after_s = status, message, code, param, retry_after_s
+
+
+class BadRequest(ApiError):
+    def __init__(self, message: str, *, param: str | None = None) -> None:
+        super().__init__(400, message, param=param)
+
+
+def _retry_after_header(e: ApiError) -> dict[str, str]:
+    return {} if e.retry_after_s is None else {"Retry-After": f"{e.retry_after_s:g}"}
+
+
+_CREDENTIAL_HEADER = re.compile(r"key|auth|token|secret|cookie", re.IGNORECASE)
+
+
+def _masked(name: str, value: str) -> str:
+    """A header value fit to record: credentials keep only their scheme ("Bearer ***")."""
+    if not _CREDENTIAL_HEADER.search(name):
+        return value
+    scheme, _, rest = value.partition(" ")
+    return f"{scheme} ***" if rest else "***"
+
+
+def _request_id(prefix: str = "req_") -> str:
+    return prefix + secrets.token_hex(12)
 
 
 # --- the three wire formats --------------------------------------------------------------
+#
+# Each format: normalize (the body as the provider reads it), validate, prompt_tokens,
+# reply, error (body + headers in the provider's documented error shape), key (the
+# credential as the provider reads it) and auth_error. tests/test_sdk_conformance.py
+# checks replies and errors against the providers' official SDKs.
 
 
 class OpenAIFormat:
+    """Errors: {"error": {"message", "type", "param", "code"}}; every response carries
+    `x-request-id`; 429 carries Retry-After."""
+
     name = "openai"
+    request_id_header = "x-request-id"
+
+    @staticmethod
+    def normalize(body: Any) -> Any:
+        return body
 
     @staticmethod
     def validate(body: Any, request: web.Request) -> None:
         if not isinstance(body, dict) or not isinstance(body.get("model"), str):
-            raise BadRequest("'model' is required")
+            raise BadRequest("you must provide a model parameter", param="model")
         msgs = body.get("messages")
         if not isinstance(msgs, list) or not msgs:
-            raise BadRequest("'messages' must be a non-empty array")
+            raise BadRequest("'messages' must be a non-empty array", param="messages")
         for m in msgs:
             if not isinstance(m, dict) or m.get("role") not in ("system", "developer", "user", "assistant", "tool"):
-                raise BadRequest("each message needs a valid 'role'")
+                raise BadRequest("each message needs a valid 'role'", param="messages")
             c = m.get("content")
             if isinstance(c, list):
                 for p in c:
                     if not isinstance(p, dict) or p.get("type") not in ("text", "image_url"):
-                        raise BadRequest("content parts must be of type text or image_url")
+                        raise BadRequest("content parts must be of type text or image_url", param="messages")
                     if p["type"] == "image_url" and not str((p.get("image_url") or {}).get("url", "")).startswith(
                         ("data:image/", "http")
                     ):
-                        raise BadRequest("image_url.url must be a data URL or http(s) URL")
+                        raise BadRequest("image_url.url must be a data URL or http(s) URL", param="messages")
             elif not isinstance(c, str):
-                raise BadRequest("'content' must be a string or an array of parts")
+                raise BadRequest("'content' must be a string or an array of parts", param="messages")
         if body.get("stream"):
-            raise BadRequest("streaming is not supported by this server")
+            raise BadRequest("streaming is not supported by this server", param="stream")
         t = body.get("temperature")
         if t is not None and not (isinstance(t, (int, float)) and 0 <= t <= 2):
-            raise BadRequest("'temperature' must be between 0 and 2")
+            raise BadRequest("'temperature' must be between 0 and 2", param="temperature")
 
     @staticmethod
     def prompt_tokens(body: dict) -> int:
@@ -171,24 +226,53 @@ class OpenAIFormat:
             "usage": {"prompt_tokens": tin, "completion_tokens": tout, "total_tokens": tin + tout},
         }
 
-    @staticmethod
-    def error(status: int, message: str) -> dict:
-        kind = {400: "invalid_request_error", 401: "invalid_request_error", 429: "rate_limit_exceeded"}.get(status, "server_error")
-        return {"error": {"message": message, "type": kind, "param": None, "code": None}}
+    # error.type as OpenAI sends it: a rate limit names the limit hit ("requests" or
+    # "tokens") and carries code "rate_limit_exceeded".
+    ERROR_TYPES = {400: "invalid_request_error", 401: "invalid_request_error", 404: "invalid_request_error", 429: "requests"}
+    ERROR_CODES = {429: "rate_limit_exceeded"}
+
+    @classmethod
+    def error(cls, e: ApiError, request_id: str) -> tuple[dict, dict[str, str]]:
+        kind = cls.ERROR_TYPES.get(e.status, "server_error" if e.status >= 500 else "invalid_request_error")
+        body = {"error": {"message": e.message, "type": kind, "param": e.param, "code": e.code or cls.ERROR_CODES.get(e.status)}}
+        return body, _retry_after_header(e)
 
     @staticmethod
     def key(request: web.Request) -> str | None:
         auth = request.headers.get("Authorization", "")
         return auth[7:] if auth.startswith("Bearer ") else None
 
+    @staticmethod
+    def auth_error(missing: bool) -> ApiError:
+        if missing:
+            return ApiError(401, "You didn't provide an API key. Provide it in an Authorization header using Bearer auth "
+                                 "(Authorization: Bearer YOUR_KEY).")
+        return ApiError(401, "Incorrect API key provided.", code="invalid_api_key")
+
+
+# The Anthropic API versions this server knows.
+ANTHROPIC_VERSIONS = ("2023-06-01", ANTHROPIC_NO_SAMPLING_FROM)
+
 
 class AnthropicFormat:
+    """Errors: {"type": "error", "error": {"type", "message"}, "request_id"}; every
+    response carries the same id in a `request-id` header; 429 carries Retry-After. The
+    key comes in `x-api-key` or, as the 2.x SDKs send it, `Authorization: Bearer`."""
+
     name = "anthropic"
+    request_id_header = "request-id"
+
+    @staticmethod
+    def normalize(body: Any) -> Any:
+        return body
 
     @staticmethod
     def validate(body: Any, request: web.Request) -> None:
-        if not request.headers.get("anthropic-version"):
-            raise BadRequest("anthropic-version header is required")
+        version = request.headers.get("anthropic-version")
+        if not version:
+            raise BadRequest("anthropic-version: header is required")
+        if version not in ANTHROPIC_VERSIONS:
+            raise BadRequest(f"anthropic-version: unknown version {version!r}")
         if not isinstance(body, dict) or not isinstance(body.get("model"), str):
             raise BadRequest("model: Field required")
         if not isinstance(body.get("max_tokens"), int) or body["max_tokens"] < 1:
@@ -212,9 +296,15 @@ class AnthropicFormat:
                             raise BadRequest("image source must be {type: base64, media_type, data}")
             elif not isinstance(c, str):
                 raise BadRequest("content must be a string or an array of blocks")
+        if body.get("stream"):
+            raise BadRequest("stream: streaming is not supported by this server")
+        if version >= ANTHROPIC_NO_SAMPLING_FROM:
+            for name in ("temperature", "top_p", "top_k"):
+                if name in body:
+                    raise BadRequest(f"{name}: Extra inputs are not permitted")
         t = body.get("temperature")
         if t is not None and not (isinstance(t, (int, float)) and 0 <= t <= 1):
-            raise BadRequest("temperature must be between 0 and 1")
+            raise BadRequest("temperature: must be between 0 and 1")
 
     @staticmethod
     def prompt_tokens(body: dict) -> int:
@@ -241,25 +331,64 @@ class AnthropicFormat:
             "usage": {"input_tokens": tin, "output_tokens": tout},
         }
 
-    @staticmethod
-    def error(status: int, message: str) -> dict:
-        kind = {400: "invalid_request_error", 401: "authentication_error", 429: "rate_limit_error"}.get(status, "api_error")
-        return {"type": "error", "error": {"type": kind, "message": message}}
+    ERROR_TYPES = {400: "invalid_request_error", 401: "authentication_error", 403: "permission_error",
+                   404: "not_found_error", 429: "rate_limit_error", 500: "api_error", 504: "timeout_error",
+                   529: "overloaded_error"}
+
+    @classmethod
+    def error(cls, e: ApiError, request_id: str) -> tuple[dict, dict[str, str]]:
+        kind = cls.ERROR_TYPES.get(e.status, "api_error" if e.status >= 500 else "invalid_request_error")
+        return {"type": "error", "error": {"type": kind, "message": e.message}, "request_id": request_id}, _retry_after_header(e)
 
     @staticmethod
     def key(request: web.Request) -> str | None:
-        return request.headers.get("x-api-key")
+        if "x-api-key" in request.headers:  # the API reads x-api-key first when both are sent
+            return request.headers["x-api-key"]
+        return OpenAIFormat.key(request)
+
+    @staticmethod
+    def auth_error(missing: bool) -> ApiError:
+        return ApiError(401, "x-api-key header is required" if missing else "invalid x-api-key")
+
+
+def _camel(key: str) -> str:
+    head, *rest = key.split("_")
+    return head + "".join(w[:1].upper() + w[1:] for w in rest)
+
+
+def _camel_keys(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {_camel(k): _camel_keys(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_camel_keys(v) for v in value]
+    return value
+
+
+def _duration(seconds: float) -> str:
+    """A google.protobuf.Duration in JSON ("22s", "0.250s")."""
+    return f"{seconds:.0f}s" if seconds == int(seconds) else f"{seconds:.3f}s"
 
 
 class GeminiFormat:
+    """Errors: {"error": {"code", "message", "status", "details"}} (google.rpc.Status as
+    HTTP JSON). A 429 says how long to wait in a google.rpc.RetryInfo detail, not in a
+    header; a wrong key is a 400 with ErrorInfo reason API_KEY_INVALID and a missing one
+    a 403, as the Gemini API answers them. Field names may come in lowerCamelCase or
+    snake_case (proto3 JSON accepts both) and bytes in either base64 alphabet."""
+
     name = "gemini"
+    request_id_header = None
+
+    @staticmethod
+    def normalize(body: Any) -> Any:
+        return _camel_keys(body)
 
     @staticmethod
     def validate(body: Any, request: web.Request) -> None:
         if not request.match_info.get("model", "").endswith(":generateContent"):
-            raise BadRequest("only models/{model}:generateContent is served")
+            raise ApiError(404, f"method not found: {request.path} (only models/{{model}}:generateContent is served)")
         if not isinstance(body, dict) or not isinstance(body.get("contents"), list) or not body["contents"]:
-            raise BadRequest("contents is required")
+            raise BadRequest("* GenerateContentRequest.contents: contents is not specified")
         for c in body["contents"]:
             if not isinstance(c, dict) or c.get("role") not in ("user", "model") or not isinstance(c.get("parts"), list):
                 raise BadRequest("each content needs role user|model and parts")
@@ -290,16 +419,36 @@ class GeminiFormat:
             "candidates": candidates,
             "usageMetadata": {"promptTokenCount": tin, "candidatesTokenCount": tout, "totalTokenCount": tin + tout},
             "modelVersion": "deepphy-mock",
+            "responseId": secrets.token_urlsafe(16),
         }
 
-    @staticmethod
-    def error(status: int, message: str) -> dict:
-        kind = {400: "INVALID_ARGUMENT", 401: "UNAUTHENTICATED", 429: "RESOURCE_EXHAUSTED"}.get(status, "INTERNAL")
-        return {"error": {"code": status, "message": message, "status": kind}}
+    STATUSES = {400: "INVALID_ARGUMENT", 401: "UNAUTHENTICATED", 403: "PERMISSION_DENIED", 404: "NOT_FOUND",
+                429: "RESOURCE_EXHAUSTED", 499: "CANCELLED", 500: "INTERNAL", 503: "UNAVAILABLE", 504: "DEADLINE_EXCEEDED"}
+
+    @classmethod
+    def error(cls, e: ApiError, request_id: str) -> tuple[dict, dict[str, str]]:
+        details: list[dict] = []
+        if e.code:
+            details.append({"@type": "type.googleapis.com/google.rpc.ErrorInfo", "reason": e.code, "domain": "googleapis.com",
+                            "metadata": {"service": "generativelanguage.googleapis.com"}})
+        if e.retry_after_s is not None:
+            details.append({"@type": "type.googleapis.com/google.rpc.RetryInfo", "retryDelay": _duration(e.retry_after_s)})
+        status = cls.STATUSES.get(e.status, "INTERNAL" if e.status >= 500 else "UNKNOWN")
+        error: dict[str, Any] = {"code": e.status, "message": e.message, "status": status}
+        if details:
+            error["details"] = details
+        return {"error": error}, {}
 
     @staticmethod
     def key(request: web.Request) -> str | None:
-        return request.headers.get("x-goog-api-key")
+        return request.headers.get("x-goog-api-key") or request.query.get("key")
+
+    @staticmethod
+    def auth_error(missing: bool) -> ApiError:
+        if missing:
+            return ApiError(403, "Method doesn't allow unregistered callers (callers without established identity). "
+                                 "Please use API Key or other form of API consumer identity to call this API.")
+        return ApiError(400, "API key not valid. Please pass a valid API key.", code="API_KEY_INVALID")
 
 
 # --- the server ------------------------------------------------------------------------------
@@ -423,47 +572,51 @@ class MockServer:
                 body_json = json.loads(raw)
             except ValueError:
                 body_json = None
-            # header names only, never their values (keys travel in headers)
-            self.bodies.append({"path": request.path, "headers": sorted(request.headers.keys()), "body": body_json})
+            headers = {k: _masked(k, v) for k, v in request.headers.items()}
+            self.bodies.append({"path": request.path, "headers": headers, "body": body_json})
+        request_id = _request_id()
+        id_header = {fmt.request_id_header: request_id} if fmt.request_id_header else {}
 
-        def err(status: int, message: str, headers: dict | None = None):
-            return web.json_response(fmt.error(status, message), status=status, headers=headers)
+        def err(e: ApiError) -> web.Response:
+            body, headers = fmt.error(e, request_id)
+            return web.json_response(body, status=e.status, headers={**id_header, **headers})
 
         if cfg.require_key_env:
             expected = os.environ.get(cfg.require_key_env, "")
-            if not expected or not secrets.compare_digest(fmt.key(request) or "", expected):
-                return err(401, "invalid or missing API key"), None
+            given = fmt.key(request)
+            if not expected or not secrets.compare_digest(given or "", expected):
+                return err(fmt.auth_error(missing=not given)), None
         try:
-            body = json.loads(raw)
+            body = fmt.normalize(json.loads(raw))
             fmt.validate(body, request)
+        except ApiError as e:
+            return err(e), None
         except ValueError:
-            return err(400, "request body is not valid JSON"), None
-        except BadRequest as e:
-            return err(400, str(e)), None
+            return err(BadRequest("request body is not valid JSON")), None
         if fault:
             self.faults[fault] += 1  # counted when served (a hang is cut short by the client)
         if delay:
             await asyncio.sleep(delay)
         if fault == "429":
-            ra = cfg.faults.retry_after_s
-            return err(429, "rate limit exceeded (injected)", {"Retry-After": f"{ra:g}"}), fault
+            return err(ApiError(429, "rate limit reached for requests (injected)", retry_after_s=cfg.faults.retry_after_s)), fault
         if fault == "500":
-            return err(500, "internal server error (injected)"), fault
+            return err(ApiError(500, "internal server error (injected)")), fault
         if fault == "hang":
             await asyncio.sleep(cfg.faults.hang_s)
-            return err(504, "gateway timeout (injected hang)"), fault
+            return err(ApiError(504, "gateway timeout (injected hang)")), fault
         if not ctx_header:
-            return err(400, f"this server answers with the MOCK policy and needs the {CONTEXT_HEADER} header "
-                            "(set send_context: true in the model config)"), fault
+            return err(BadRequest(f"this server answers with the MOCK policy and needs the {CONTEXT_HEADER} header "
+                                  "(set send_context: true in the model config)")), fault
         try:
             ctx = decode_context(ctx_header)
         except Exception:
-            return err(400, f"bad {CONTEXT_HEADER} header"), fault
+            return err(BadRequest(f"bad {CONTEXT_HEADER} header")), fault
         if fault == "malformed":
-            return web.Response(text='{"id": "x", "choices": [{"message": {"content": "', content_type="application/json"), fault
+            return web.Response(text='{"id": "x", "choices": [{"message": {"content": "', content_type="application/json",
+                                headers=id_header), fault
         tin = fmt.prompt_tokens(body)
         if fault == "empty":
-            return web.json_response(fmt.reply(body, None, tin, 0)), fault
+            return web.json_response(fmt.reply(body, None, tin, 0), headers=id_header), fault
         if fault == "prose":
             text = PROSE_REPLY
         else:
@@ -471,7 +624,7 @@ class MockServer:
             from deepphy.prompts import mock_reply
 
             text = mock_reply(ctx.format, mock_action_text(ctx))
-        return web.json_response(fmt.reply(body, text, tin, text_tokens(text))), fault
+        return web.json_response(fmt.reply(body, text, tin, text_tokens(text)), headers=id_header), fault
 
 
 # --- running it ------------------------------------------------------------------------------
