@@ -93,7 +93,14 @@ class ActionSpace(BaseModel, ABC):
 
     @abstractmethod
     def sample(self, rng: np.random.Generator, exclude: Sequence[Action] = ()) -> Action:
-        """A uniformly random valid action, avoiding `exclude` where the space allows."""
+        """A uniformly random valid action, avoiding `exclude` where the space allows
+        (the `mock-uniform` baseline)."""
+
+    def reference_reply(self, rng: np.random.Generator) -> str:
+        """The reply text of the reference implementation's random baseline (`mock`) for
+        this decision: what it would send, unparseable replies included. Default: a
+        uniformly random valid action."""
+        return self.format(self.sample(rng))
 
     @abstractmethod
     def format(self, action: Action) -> str:
