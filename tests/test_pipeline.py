@@ -140,3 +140,29 @@ def test_watch_streams_a_live_runs_snapshot(ray_cluster, tmp_path, capsys):
     snap = snapshots[0]
     assert snap["episodes_total"] == len(TASKS) * CONFIG.runs and 0 <= snap["episodes_done"] <= snap["episodes_total"]
     assert main(["watch", "--address", ray_cluster, "--once"]) == 1  # the run is over: nothing live
+
+
+@pytest.mark.parametrize("env, tasks", [
+    ("pooltool", ["rack_000", "rack_001", "rack_002"]),
+    ("kinetix", ["s_h0_weak_thrust", "s_h1_thrust_over_ball", "s_h2_one_wheel_car", "s_h3_point_the_thruster"]),
+])
+def test_on_the_fly_episodes_through_ray(ray_cluster, tmp_path, env, tasks):
+    """Multi-decision attempts through real Ray: records hold every decision, prompts show the
+    earlier decisions of the attempt, and the worker steps waiting episodes together."""
+    import json
+
+    config = RunConfig(env=env, model="mock", runs=2, seed=5, tasks=tasks)
+    outcome = evaluate(config, tmp_path, RuntimeOptions(progress=False, env_workers=1, max_in_flight=16))
+    assert outcome.complete and outcome.new_records == len(tasks) * 2  # K = 1: one attempt per episode
+    records = assert_complete(tmp_path, config, k=1)
+    multi = [r for r in records if len(r.steps) > 1]
+    assert multi, "no attempt took more than one decision"
+    for r in records:
+        assert [s.step for s in r.steps] == list(range(1, len(r.steps) + 1))
+        assert len(r.key_frames) == len(r.steps)  # one key frame per decision
+        assert r.success or r.truncated or r.steps[-1].terminated
+        assert all(not (s.terminated or s.truncated) for s in r.steps[:-1])
+    second = json.loads((tmp_path / "prompts" / f"{multi[0].steps[1].prompt}.json").read_text())
+    user = "\n".join(p for m in second for p in m["content"])
+    assert "Your earlier decisions in this attempt" in user and f"Step 1: {multi[0].steps[0].action_text}" in user
+    assert max(s["max_batch"] for s in outcome.worker_stats) > 1, outcome.worker_stats
