@@ -113,15 +113,26 @@ def cmd_run(args: argparse.Namespace) -> int:
         where = ".".join(map(str, err["loc"]))
         raise UserError(f"{where + ': ' if where else ''}{err['msg'].removeprefix('Value error, ')}") from None
     outcome = evaluate(config, args.out, runtime)
-    print(f"run directory: {outcome.out} ({outcome.episodes_done}/{outcome.episodes_total} episodes complete, "
-          f"{outcome.new_records} new attempt records)")
+    lines, status = run_summary(outcome)
+    print(lines[0])
+    for line in lines[1:]:
+        print(line, file=sys.stdout if status == 0 else sys.stderr)
+    return status
+
+
+def run_summary(outcome) -> tuple[list[str], int]:
+    """The lines `deepphy run` ends with, and its exit status (1 if anything is left to do)."""
+    lines = [f"run directory: {outcome.out} ({outcome.episodes_done}/{outcome.episodes_total} episodes complete, "
+             f"{outcome.new_records} new attempt records)"]
+    if outcome.errored:
+        lines.append(f"{len(outcome.errored)} attempt(s) failed with an error (details and tracebacks in "
+                     f"{outcome.out / 'errors.jsonl'}); first: {outcome.errored[0][:200]}")
+    lines += [f"unfinished: {line}" for line in outcome.unfinished[:10]]
     if not outcome.complete:
-        for line in outcome.unfinished[:10]:
-            print(f"unfinished: {line}", file=sys.stderr)
-        print("the run is incomplete; run the same command again to resume it", file=sys.stderr)
-        return 1
-    print(f"next: deepphy report {outcome.out}")
-    return 0
+        lines.append("the run is incomplete; run the same command again to resume it")
+        return lines, 1
+    lines.append(f"next: deepphy report {outcome.out}")
+    return lines, 0
 
 
 def cmd_report(args: argparse.Namespace) -> int:

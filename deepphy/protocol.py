@@ -26,6 +26,7 @@ from typing import Protocol, Sequence
 from deepphy.chat import Image
 from deepphy.config import RunConfig
 from deepphy.envs import Action, EnvSpec, Environment, InvalidAction, Observation, Planning, StepResult, Task
+from deepphy.envs.parsing import cut_reply
 from deepphy.models.base import ModelRequest, ModelResponse, RequestContext
 from deepphy.prompts import EnvPrompt, PastAttempt, PastStep, build_messages, prompt_as_json, prompt_digest, split_reply
 from deepphy.runs.records import AttemptRecord, KeyFrame, ModelStats, StepRecord, Timing
@@ -100,12 +101,13 @@ async def run_attempt(
         stats.retries += response.retries
         stats.images_dropped += response.images_dropped
 
-        prediction, action_text = split_reply(config.format, response.text)
+        reply, cut = cut_reply(response.text)
+        prediction, action_text = split_reply(config.format, reply)
         try:
             action = observation.action_space.parse(action_text)
         except InvalidAction as e:
             invalid_reason = f"unparseable action: {e}"
-            steps.append(StepRecord(step=step, prompt=digest, raw_output=response.text, prediction=prediction,
+            steps.append(StepRecord(step=step, prompt=digest, raw_output=reply, reply_cut=cut, prediction=prediction,
                                     invalid_reason=invalid_reason, terminated=True))
             break
         canonical = observation.action_space.format(action)
@@ -116,7 +118,7 @@ async def run_attempt(
             rel = artifacts.write_frame(task.id, run, attempt, f"s{step}_{frame.name}", frame.png)
             frames.append(KeyFrame(path=rel, caption=f"step {step}, {frame.caption}"))
         steps.append(StepRecord(
-            step=step, prompt=digest, raw_output=response.text, prediction=prediction,
+            step=step, prompt=digest, raw_output=reply, reply_cut=cut, prediction=prediction,
             action=action.model_dump(mode="json"), action_text=canonical, invalid_reason=result.invalid_reason,
             feedback=result.feedback, info=result.info, terminated=result.terminated, truncated=result.truncated,
         ))

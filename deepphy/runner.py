@@ -186,7 +186,7 @@ def _check_unique(records: Sequence[Any], out: str | Path) -> None:
 
 async def _drive(scheduler, existing, env_workers, metrics, runtime: RuntimeOptions, stream) -> None:
     """Warm the workers up, then run the scheduler, with the progress view alongside."""
-    phase = ["starting environment workers (the first run on a machine compiles kernels)"]
+    phase = ["preparing workers (compiling kernels on first use)"]
     view = asyncio.ensure_future(_progress(scheduler, metrics, phase, stream)) if runtime.progress else None
     try:
         await asyncio.wait_for(asyncio.gather(*(w.warm_up.remote(scheduler.tasks) for w in env_workers)),

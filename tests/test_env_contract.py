@@ -66,3 +66,39 @@ def test_the_toy_environment_runs_through_the_whole_pipeline(ray_cluster, toy, t
     report = report_of(tmp_path)
     assert set(report["overall"]["mean"]["success_within_steps"]) == {"1", "2", "4"}
     assert "Push1" in render_text(report) and set(report["groups"]) == {"near", "far"}
+
+
+def test_an_attempt_that_raises_is_isolated_logged_and_retried_on_resume(ray_cluster, tmp_path):
+    """An environment bug in one episode: the others finish, the error (with its traceback)
+    goes to errors.jsonl, not the terminal; the episode has no record, and a resume runs it."""
+    import json
+
+    from toy_env.broken import Explodes
+
+    from deepphy.cli import run_summary
+    from deepphy.config import RunConfig, RuntimeOptions
+    from deepphy.runner import evaluate
+    from deepphy.runs.store import read_records
+
+    register(Explodes.spec)
+    try:
+        trigger = tmp_path / "explode"
+        trigger.touch()
+        config = RunConfig(env="explodes", runs=1, seed=1, env_options={"explode_if_exists": str(trigger)})
+        run_dir = tmp_path / "run"
+        outcome = evaluate(config, run_dir, RuntimeOptions(progress=False, env_workers=1))
+        assert not outcome.complete and outcome.episodes_done == 9 and len(outcome.errored) == 1
+        assert "flag-05" in outcome.errored[0] and "RuntimeError" in outcome.errored[0]
+        assert {r.task for r in read_records(run_dir)} == {f"flag-{f:02d}" for f in range(2, 12)} - {"flag-05"}
+        errors = [json.loads(line) for line in (run_dir / "errors.jsonl").read_text().splitlines()]
+        assert [(e["task"], e["attempt"]) for e in errors] == [("flag-05", 1)]
+        assert "the cart left the rail" in errors[0]["message"] and "Traceback" in errors[0]["traceback"]
+        lines, status = run_summary(outcome)
+        assert status == 1 and any("1 attempt(s) failed with an error" in line and "errors.jsonl" in line for line in lines)
+
+        trigger.unlink()  # the bug is fixed: the resume runs the errored episode and only it
+        again = evaluate(config, run_dir, RuntimeOptions(progress=False, env_workers=1))
+        assert again.complete and not again.errored and again.new_records >= 1
+        assert {r.task for r in read_records(run_dir) if r.task == "flag-05"} == {"flag-05"}
+    finally:
+        unregister("explodes")

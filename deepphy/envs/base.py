@@ -19,14 +19,16 @@ Environments know nothing of Ray, prompts or models.
 
 from __future__ import annotations
 
+import functools
 from abc import ABC, abstractmethod
 from enum import Enum
-from typing import TYPE_CHECKING, Any, ClassVar, Sequence
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Sequence
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from deepphy.chat import Image
+from deepphy.envs.parsing import cut_reply
 
 if TYPE_CHECKING:
     from deepphy.envs.spec import EnvSpec
@@ -74,6 +76,8 @@ class ActionSpace(BaseModel, ABC):
         default = cls.model_fields["kind"].default
         if isinstance(default, str):
             ActionSpace._registry[default] = cls
+        if "parse" in cls.__dict__:
+            cls.parse = _bounded(cls.__dict__["parse"])  # type: ignore[method-assign]
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> "ActionSpace":
@@ -88,7 +92,8 @@ class ActionSpace(BaseModel, ABC):
         """Model text -> validated action; raises InvalidAction(reason).
 
         Total and fast: any string gives an action or InvalidAction, in time linear in its
-        length. When a reply states several answers, the last one counts (deepphy/envs/parsing.py).
+        length. When a reply states several answers, the last one counts. Every space's
+        parse sees at most the reply's last MAX_REPLY_CHARS characters (deepphy/envs/parsing.py).
         """
 
     @abstractmethod
@@ -105,6 +110,19 @@ class ActionSpace(BaseModel, ABC):
     @abstractmethod
     def format(self, action: Action) -> str:
         """The action in the exact syntax the prompt asks for (parse(format(a)) == a)."""
+
+
+def _bounded(parse: Callable[[Any, str], Action]) -> Callable[[Any, str], Action]:
+    """A space's parse, given at most the reply's last MAX_REPLY_CHARS characters: whatever
+    a reply's length, parsing it takes bounded time (the protocol records the cut)."""
+
+    @functools.wraps(parse)
+    def bounded(self: Any, text: str) -> Action:
+        if not isinstance(text, str):
+            raise InvalidAction(f"expected text, got {type(text).__name__}")
+        return parse(self, cut_reply(text)[0])
+
+    return bounded
 
 
 class Observation(BaseModel):

@@ -119,8 +119,11 @@ def build_messages(
     return [system, Message(role="user", content=parts)]
 
 
-_PREDICTION = re.compile(r"prediction\s*[:\-]\s*(.*?)(?=\n\s*\**\s*action\s*\**\s*[:\-]|\Z)", re.I | re.S)
-_ACTION = re.compile(r"(?:^|\n)\s*\**\s*action\s*\**\s*[:\-]\s*(.*)\Z", re.I | re.S)
+# Possessive quantifiers (*+): no backtracking, so a reply of any shape splits in linear time.
+_ACTION_LINE = r"\n[ \t]*+\**+[ \t]*+action[ \t]*+\**+[ \t]*+[:\-]"
+_PREDICTION = re.compile(r"\bprediction[ \t]*+\**+[ \t]*+[:\-]\s*+(.*?)(?=" + _ACTION_LINE + r"|\Z)", re.I | re.S | re.ASCII)
+_ACTION = re.compile(r"(?:\A|" + _ACTION_LINE[:2] + r")[ \t]*+\**+[ \t]*+action[ \t]*+\**+[ \t]*+[:\-]\s*+(.*)\Z",
+                     re.I | re.S | re.ASCII)
 
 
 def split_reply(fmt: PromptFormat, text: str) -> tuple[str | None, str]:

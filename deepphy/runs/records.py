@@ -14,7 +14,8 @@ class StepRecord(BaseModel):
 
     step: int
     prompt: str  # digest of the prompt; its text is in prompts/<digest>.json
-    raw_output: str
+    raw_output: str  # the reply, cut to its last MAX_REPLY_CHARS characters (deepphy/envs/parsing.py)
+    reply_cut: int = 0  # characters cut from the start of an over-long reply
     prediction: str | None = None  # WM format only
     action: dict[str, Any] | None = None  # the parsed action; None if invalid
     action_text: str | None = None  # the action in canonical syntax

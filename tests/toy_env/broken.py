@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import itertools
+import os
 
-from deepphy.envs import Observation, StepResult, Task
+from deepphy.envs import EnvOptions, Observation, StepResult, Task
 from toy_env import SPEC
 from toy_env.env import CartEnv
 from toy_env.prompt import CartPrompt
@@ -56,6 +57,23 @@ class BadExample(CartEnv):
     spec = _spec("bad_example", prompt="toy_env.broken:BadExamplePrompt")
 
 
-for _cls in (RandomStart, UnsafeIds, NeverEnds, BadExample):
+class ExplodeOptions(EnvOptions):
+    explode_if_exists: str = ""  # a file: while it exists, task flag-05 raises at its second push
+
+
+class Explodes(CartEnv):
+    """A bug on purpose, in one task only (episode isolation)."""
+
+    spec = _spec("explodes")
+    Options = ExplodeOptions
+
+    def step(self, action) -> StepResult:
+        trigger = self.options.explode_if_exists
+        if self.flag == 5 and self.pushes == 1 and trigger and os.path.exists(trigger):
+            raise RuntimeError("the cart left the rail (a bug, on purpose)")
+        return super().step(action)
+
+
+for _cls in (RandomStart, UnsafeIds, NeverEnds, BadExample, Explodes):
     _cls.tasks = classmethod(lambda cls, options, _base=_cls.tasks: [
         t.model_copy(update={"env": cls.spec.name}) for t in _base.__func__(cls, options)])

@@ -11,7 +11,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from deepphy.envs.base import Action, ActionSpace, InvalidAction
-from deepphy.envs.parsing import first_json_array
+from deepphy.envs.parsing import brief, is_number, last_json_array
 
 MAX_TIME = 15.0  # seconds simulated per attempt (iphyre's max_time)
 FPS = 60
@@ -36,28 +36,28 @@ class IPhyreSpace(ActionSpace):
     num_blocks: int
 
     def parse(self, text: str) -> IPhyrePlan:
-        raw = first_json_array(text)
+        raw = last_json_array(text)
         if raw is None:
             raise InvalidAction('no JSON array of {"time", "index"} objects found')
+        if len(raw) > MAX_CLICKS:
+            raise InvalidAction(f"at most {MAX_CLICKS} removals per plan, got {len(raw)}")
         clicks = []
         for item in raw:
             if not isinstance(item, dict):
-                raise InvalidAction(f"plan entries must be objects with time and index, got {item!r}")
+                raise InvalidAction(f"plan entries must be objects with time and index, got {brief(item)}")
             keys = {str(k).strip().lower(): v for k, v in item.items()}
             if set(keys) != {"time", "index"}:
-                raise InvalidAction(f"each entry needs exactly the keys time and index, got {sorted(keys)}")
+                raise InvalidAction(f"each entry needs exactly the keys time and index, got {brief(sorted(keys))}")
             t, i = keys["time"], keys["index"]
-            if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t):
-                raise InvalidAction(f"time must be a number of seconds, got {t!r}")
-            if isinstance(i, bool) or not (isinstance(i, int) or (isinstance(i, float) and i.is_integer())):
-                raise InvalidAction(f"index must be an integer, got {i!r}")
+            if not is_number(t) or not math.isfinite(t):
+                raise InvalidAction(f"time must be a number of seconds, got {brief(t)}")
+            if not is_number(i) or not float(i).is_integer():
+                raise InvalidAction(f"index must be an integer, got {brief(i)}")
             if not 0.0 <= t < MAX_TIME:
                 raise InvalidAction(f"time {t} is outside [0, {MAX_TIME:g})")
             if not 0 <= int(i) < self.num_blocks:
                 raise InvalidAction(f"index {int(i)} is not a gray block (0..{self.num_blocks - 1})")
             clicks.append(Click(time=round(float(t), 4), index=int(i)))
-        if len(clicks) > MAX_CLICKS:
-            raise InvalidAction(f"at most {MAX_CLICKS} removals per plan, got {len(clicks)}")
         return IPhyrePlan(clicks=tuple(sorted(clicks, key=lambda c: (c.time, c.index))))
 
     def sample(self, rng: np.random.Generator, exclude: Sequence[Action] = ()) -> IPhyrePlan:

@@ -86,6 +86,19 @@ class KinetixEnv(Environment):
                 ]
         return out
 
+    @classmethod
+    def warm_up(cls, options: EnvOptions, tasks: Sequence[Task]) -> None:
+        """Compile the decision function of every level size these tasks use (seconds each;
+        the persistent JAX cache makes later processes faster)."""
+        from deepphy.envs.kinetix import sim
+
+        first_of_size: dict[str, Task] = {}
+        for task in tasks:
+            first_of_size.setdefault(task.group, task)
+        for task in first_of_size.values():
+            level = sim.load_level(task.params["level"])
+            sim.get_sim(level).decide([level.state], np.zeros((1, 6), np.int32))
+
     # -- the contract ---------------------------------------------------------------
 
     def reset(self, task: Task) -> Observation:

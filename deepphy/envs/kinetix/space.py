@@ -10,7 +10,7 @@ from typing import Literal, Sequence
 import numpy as np
 
 from deepphy.envs.base import Action, ActionSpace, InvalidAction
-from deepphy.envs.parsing import first_json_array
+from deepphy.envs.parsing import brief, is_number, last_json_array
 
 MOTOR_VALUES = (0, 1, 2)  # off, forward, reverse
 THRUSTER_VALUES = (0, 1)  # off, on
@@ -39,7 +39,7 @@ class KinetixSpace(ActionSpace):
         return [f"M{i}" for i in range(self.num_motors)] + [f"T{i}" for i in range(self.num_thrusters)]
 
     def parse(self, text: str) -> KinetixAction:
-        values = first_json_array(text)
+        values = last_json_array(text)
         if values is None:
             raise InvalidAction("no JSON list of integers found (expected e.g. [1, 0])")
         if any(isinstance(v, (list, dict)) for v in values):
@@ -51,8 +51,8 @@ class KinetixSpace(ActionSpace):
             )
         ints: list[int] = []
         for label, v in zip(self.labels(), values):
-            if isinstance(v, bool) or not (isinstance(v, int) or (isinstance(v, float) and v.is_integer())):
-                raise InvalidAction(f"{label} must be an integer, got {v!r}")
+            if not is_number(v) or not float(v).is_integer():
+                raise InvalidAction(f"{label} must be an integer, got {brief(v)}")
             ints.append(int(v))
         motors, thrusters = ints[: self.num_motors], ints[self.num_motors :]
         for i, v in enumerate(motors):

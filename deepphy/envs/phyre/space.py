@@ -24,8 +24,10 @@ class PhyreAction(Action):
     radius: int
 
 
-_CELL = re.compile(r"\bcell\**\s*(?:number|no\.?|#)?\s*[:=]?\s*\**\s*(-?\d+(?:\.\d+)?)", re.I)
-_RADIUS = re.compile(r"\bradius\**\s*(?:level)?\s*[:=]?\s*\**\s*(-?\d+(?:\.\d+)?)", re.I)
+# Possessive quantifiers (*+, ++): no backtracking, linear in the reply's length.
+_CELL = re.compile(r"\bcell\**+\s*+(?:number|no\.?|#)?+\s*+[:=]?+\s*+\**+\s*+(-?[0-9]++(?:\.[0-9]++)?+)", re.I | re.ASCII)
+_RADIUS = re.compile(r"\bradius\**+\s*+(?:level)?+\s*+[:=]?+\s*+\**+\s*+(-?[0-9]++(?:\.[0-9]++)?+)", re.I | re.ASCII)
+MAX_DIGITS = 6
 
 
 class PhyreSpace(ActionSpace):
@@ -47,6 +49,8 @@ class PhyreSpace(ActionSpace):
         # The last stated pair wins: models often restate their final answer at the end.
         cell_s, radius_s = cells[-1], radii[-1]
         for name, value, hi in (("cell", cell_s, self.num_cells), ("radius", radius_s, self.radius_levels)):
+            if len(value) > MAX_DIGITS:
+                raise InvalidAction(f"{name} {value[:12]}... is outside 1..{hi}")
             if not float(value).is_integer():
                 raise InvalidAction(f"{name} must be a whole number, got {value}")
             if not 1 <= int(float(value)) <= hi:

@@ -64,8 +64,8 @@ _NEUTRAL = {"middle", "centre", "center", "central", "mid", "centered", "centred
 _FILLER = {"of", "the", "ball", "cue", "spot", "side", "edge", "hit", "strike", "at", "on", "and", "a"}
 
 _KEY_TAIL = r"[\s*_`\"']*[:=][\s*_`\"']*"  # `Speed:`, `**Speed:**`, `"speed": "`, `speed = `
-_SPEED_RE = re.compile(r"\bspeed" + _KEY_TAIL + r"([a-z0-9.]+)(\s*m\s*/\s*s)?", re.I)
-_SPOT_RE = re.compile(r"(?:\bstrike[\s_\-]*|\b)spot" + _KEY_TAIL + r"([a-z][a-z \t\-_]*)", re.I)
+_SPEED_RE = re.compile(r"\bspeed" + _KEY_TAIL + r"([a-z0-9.]+)(\s*m\s*/\s*s)?", re.I | re.ASCII)
+_SPOT_RE = re.compile(r"(?:\bstrike[\s_\-]*|\b)spot" + _KEY_TAIL + r"([a-z][a-z \t\-_]*)", re.I | re.ASCII)
 
 
 def _parse_speed(value: str) -> str:
