@@ -1,13 +1,16 @@
-"""PHYRE-B on pymunk: our own implementation of the 25 PHYRE-B templates.
+"""PHYRE-B: the real PHYRE tasks (phyre 0.2.2's data) simulated on Box2D with PHYRE's rules.
 
-- `scene.py`: objects, simulation with PHYRE's success rule, rendering;
-- `templates/`: the 25 task templates (template API in `templates/__init__.py`);
-- `space.py`: the `Cell: N, Radius: R` action space (light, no physics imports);
-- `env.py`: the Environment (folds, observations, attempts);
-- `solve.py`: solvability search and variant verification (`python -m deepphy.envs.phyre.solve`).
+- `thrift.py`: a small reader for Thrift's binary protocol (PHYRE's data format);
+- `data.py`: fetching, verifying, decoding and caching the task data (first use);
+- `splits.py`: PHYRE's evaluation setups and folds (md5-based shuffles);
+- `space.py`: PHYRE's ball action mapper and the action spaces (grid, continuous);
+- `sim.py`: the Box2D simulation with PHYRE's constants, goal test and placement rules;
+- `render.py`: drawing scenes in PHYRE's colours;
+- `env.py`: the Environment (task lists, observations, attempts);
+- `solve.py`: solvability of the evaluation set (`deepphy solve --env phyre report`).
 """
 
-from deepphy.envs.phyre.space import PhyreAction, PhyreSpace
+from deepphy.envs.phyre.space import PhyreAction, PhyreContinuousAction, PhyreContinuousSpace, PhyreSpace
 from deepphy.envs.phyre.env import PhyreEnv, PhyreOptions
 
-__all__ = ["PhyreAction", "PhyreEnv", "PhyreOptions", "PhyreSpace"]
+__all__ = ["PhyreAction", "PhyreContinuousAction", "PhyreContinuousSpace", "PhyreEnv", "PhyreOptions", "PhyreSpace"]
