@@ -77,20 +77,20 @@ def test_attempts_reproduce_real_phyre(default_tasks):
     env = PhyreEnv()
     env.reset(task)
     statuses = GROUND_TRUTH["outcomes"][ground_truth_id]
-    solved_at = statuses.index(1)
-    action = PhyreAction(cell=GROUND_TRUTH["actions"][solved_at][0], radius=GROUND_TRUTH["actions"][solved_at][1])
-    result = env.step(action)
+
+    def grid_action(status: int) -> PhyreAction:
+        cell, radius = GROUND_TRUTH["actions"][statuses.index(status)]
+        return PhyreAction(cell=cell, radius=radius)
+
+    result = env.step(grid_action(1))
     assert result.done and result.success and result.invalid_reason is None
     assert result.feedback.startswith("solved") and result.info["steps"] <= 1000
     strip = result.key_frames[0].to_array()
     assert strip.shape[0] == 256 and strip.shape[1] > 4 * 256
-    assert env.step(action).model_dump() == result.model_dump()  # the same action, the same attempt
-    invalid_at = statuses.index(0)
-    bad = env.step(PhyreAction(cell=GROUND_TRUTH["actions"][invalid_at][0],
-                               radius=GROUND_TRUTH["actions"][invalid_at][1]))
+    assert env.step(grid_action(1)).model_dump() == result.model_dump()  # the same action, the same attempt
+    bad = env.step(grid_action(0))
     assert bad.done and not bad.success and bad.invalid_reason and not bad.key_frames
-    failed_at = statuses.index(-1)
-    miss = env.step(PhyreAction(cell=GROUND_TRUTH["actions"][failed_at][0], radius=GROUND_TRUTH["actions"][failed_at][1]))
+    miss = env.step(grid_action(-1))
     assert miss.done and not miss.success and miss.invalid_reason is None and miss.feedback.startswith("not solved")
 
 

@@ -118,8 +118,8 @@ print(json.dumps(out))
 def test_bit_identical_across_processes():
     runs = []
     for seed in ("0", "12345"):
-        proc = subprocess.run([sys.executable, "-c", DETERMINISM], capture_output=True, text=True, check=True,
-                              env={"PYTHONHASHSEED": seed, "PATH": "", "DEEPPHY_CACHE_DIR": str(data.cache_dir().parent)})
+        bare = {"PYTHONHASHSEED": seed, "PATH": "", "DEEPPHY_CACHE_DIR": str(data.cache_dir().parent)}
+        proc = subprocess.run([sys.executable, "-c", DETERMINISM], capture_output=True, text=True, check=True, env=bare)
         runs.append(proc.stdout)
     assert runs[0] == runs[1]
     here = json.loads(subprocess.run([sys.executable, "-c", DETERMINISM], capture_output=True, text=True,

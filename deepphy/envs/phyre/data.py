@@ -12,7 +12,8 @@ First use (under a file lock, so concurrent workers fetch and decode once):
 3. the tasks of tier BALL (PHYRE-B: templates 00000-00024 x 100 tasks) are decoded with
    our own Thrift reader and cached as JSON next to it (`ball_tasks.v<N>.json`).
 Every file appears by atomic rename. `<cache>` is `$DEEPPHY_CACHE_DIR` or
-`~/.cache/deepphy`. Later processes only read the JSON (~0.1 s; a task becomes a model when first asked for).
+`~/.cache/deepphy`. Later processes only read the JSON (~0.1 s); a task becomes a model
+when first asked for.
 """
 
 from __future__ import annotations
@@ -129,21 +130,14 @@ def _compact_tasks() -> dict[str, list]:
         with _locked(cache_dir()):
             if not path.exists():
                 tasks = decode(_data_file_locked().read_bytes())
-                blob = json.dumps({t.id: _compact(t) for t in tasks}, separators=(",", ":"))
-                _write_atomic(path, blob.encode())
+                _write_atomic(path, json.dumps(tasks, separators=(",", ":")).encode())
     return json.loads(path.read_bytes())
 
 
-def _compact(task: PhyreTask) -> list:
-    """[body1, body2, relation, description, bodies]; body = [x, y, angle, dynamic, color,
-    kind, diameter, shapes]; shape = a radius or a flat vertex list [x0, y0, x1, y1, ...]."""
-    bodies = [[b.x, b.y, b.angle, b.dynamic, b.color, b.kind, b.diameter,
-               [s.radius if s.polygon is None else [c for v in s.polygon for c in v] for s in b.shapes]]
-              for b in task.bodies]
-    return [task.body1, task.body2, task.relation, task.description, bodies]
-
-
 def _expand(task_id: str, raw: list) -> PhyreTask:
+    """A task from the cache's compact form: [body1, body2, relation, description, bodies];
+    body = [x, y, angle, dynamic, color, kind, diameter, shapes]; shape = a radius or a flat
+    vertex list [x0, y0, x1, y1, ...]."""
     body1, body2, relation, description, bodies = raw
     return PhyreTask(
         id=task_id, body1=body1, body2=body2, relation=relation, description=description,
@@ -176,8 +170,9 @@ def _data_file_locked() -> Path:
     return target
 
 
-def decode(compressed: bytes) -> list[PhyreTask]:
-    """The tasks of tier BALL from the LZMA-compressed Thrift TaskCollection, in file order."""
+def decode(compressed: bytes) -> dict[str, list]:
+    """The tasks of tier BALL from the LZMA-compressed Thrift TaskCollection, in file order,
+    in the cache's compact form (`_expand` makes a task of it)."""
     collection = read_struct(lzma.decompress(compressed))
     raw = collection.get(1, [])
     # PHYRE's get_task_ids_in_tier: the templates whose tasks are all of the tier.
@@ -185,41 +180,27 @@ def decode(compressed: bytes) -> list[PhyreTask]:
     for t in raw:
         tiers.setdefault(t[1].decode().split(":")[0], set()).add(t.get(9, b""))
     chosen = {tpl for tpl, ts in tiers.items() if ts == {TIER.encode()}}
-    tasks = [_task(t) for t in raw if t[1].decode().split(":")[0] in chosen]
+    tasks = {t[1].decode(): _task(t) for t in raw if t[1].decode().split(":")[0] in chosen}
     if len(tasks) != TEMPLATES * TASKS_PER_TEMPLATE:
         raise DataUnavailable(f"expected {TEMPLATES * TASKS_PER_TEMPLATE} PHYRE-B tasks, decoded {len(tasks)}")
     return tasks
 
 
-def _task(t: dict) -> PhyreTask:
+def _task(t: dict) -> list:
     # task.thrift Task: 1 taskId, 2 scene, 3 bodyId1, 4 bodyId2, 5 relationships, 6 description
     relations = t[5]
     if len(relations) != 1 or relations[0] not in RELATIONS:
         raise DataUnavailable(f"task {t[1].decode()}: unsupported relationships {relations}")
-    return PhyreTask(
-        id=t[1].decode(),
-        bodies=tuple(_body(b) for b in t[2][1]),  # scene.thrift Scene: 1 bodies
-        body1=t[3],
-        body2=t[4],
-        relation=RELATIONS[relations[0]],
-        description=t.get(6, b"").decode(),
-    )
+    bodies = [_body(b) for b in t[2][1]]  # scene.thrift Scene: 1 bodies
+    return [t[3], t[4], RELATIONS[relations[0]], t.get(6, b"").decode(), bodies]
 
 
-def _body(b: dict) -> Body:
+def _body(b: dict) -> list:
     # scene.thrift Body: 1 position, 2 bodyType (1 static, 2 dynamic), 3 angle, 4 shapes,
     # 5 color, 6 shapeType, 7 diameter. Shape is a union: 1 polygon (1 vertices), 2 circle (1 radius).
-    shapes = []
-    for s in b.get(4, []):
-        if 1 in s:
-            shapes.append(Shape(polygon=tuple((v[1], v[2]) for v in s[1][1])))
-        else:
-            shapes.append(Shape(radius=s[2][1]))
-    return Body(
-        x=b[1][1], y=b[1][2], angle=b.get(3, 0.0), dynamic=b[2] == 2,
-        color=COLOR_NAMES[b.get(5, 6)], kind=SHAPE_NAMES[b.get(6, 0)], diameter=b.get(7, 0.0),
-        shapes=tuple(shapes),
-    )
+    shapes = [[c for v in s[1][1] for c in (v[1], v[2])] if 1 in s else s[2][1] for s in b.get(4, [])]
+    return [b[1][1], b[1][2], b.get(3, 0.0), b[2] == 2, COLOR_NAMES[b.get(5, 6)], SHAPE_NAMES[b.get(6, 0)],
+            b.get(7, 0.0), shapes]
 
 
 # -- fetching -------------------------------------------------------------------------------
@@ -235,19 +216,19 @@ def _unavailable(reason: str) -> DataUnavailable:
 
 
 def _pip_commands() -> Iterator[list[str]]:
-    """pip front ends to try: this interpreter's (a uv venv has none), then those on PATH."""
-    seen = set()
-    candidates = [[sys.executable, "-m", "pip"]]
+    """pip front ends to try: this interpreter's (a uv venv has none), its base interpreter's,
+    then those on PATH. The machine's pip configuration applies to each."""
+    candidates = [[sys.executable, "-m", "pip"], [getattr(sys, "_base_executable", sys.executable), "-m", "pip"]]
     for name in ("python3", "python"):
         if found := shutil.which(name):
             candidates.append([found, "-m", "pip"])
     for name in ("pip3", "pip"):
         if found := shutil.which(name):
             candidates.append([found])
+    seen = set()
     for cmd in candidates:
-        key = tuple(os.path.realpath(c) if i == 0 else c for i, c in enumerate(cmd))
-        if key not in seen:
-            seen.add(key)
+        if tuple(cmd) not in seen:
+            seen.add(tuple(cmd))
             yield cmd
 
 

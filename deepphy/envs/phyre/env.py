@@ -210,12 +210,12 @@ def describe_outcome(task: data.PhyreTask, outcome: sim.Outcome) -> str:
     pair = [task.bodies[task.body1], task.bodies[task.body2]]
     pair.sort(key=lambda b: b.color != "green")  # the green object is the subject of the sentence
     subject, target = (_name(b) for b in pair)
-    t = outcome.steps / sim.FPS
+    held, total = sim.SOLVED_STEPS / sim.FPS, sim.MAX_STEPS / sim.FPS
     if outcome.solved:
-        return f"solved: the {subject} kept touching the {target} for {sim.SOLVED_STEPS / sim.FPS:g} s (at t = {t:.1f} s)"
+        return f"solved: the {subject} kept touching the {target} for {held:g} s (at t = {outcome.steps / sim.FPS:.1f} s)"
     how = {
         "at_rest": f"everything came to rest at t = {outcome.simulated / sim.FPS:.1f} s",
-        "time_out": f"the goal was not held for {sim.SOLVED_STEPS / sim.FPS:g} s within {sim.MAX_STEPS / sim.FPS:.1f} s",
+        "time_out": f"the goal was not held for {held:g} s within {total:.1f} s",
     }[outcome.end]
     touched = "touched" if outcome.touched else "never touched"
     return f"not solved: {how}; the {subject} {touched} the {target}"
