@@ -156,7 +156,7 @@ class PhyreEnv(Environment):
         frames = outcome.frames
         images, captions = [], []
         for target in targets:
-            step, poses = max((f for f in frames if f[0] <= target), key=lambda f: f[0])
+            _, poses = max((f for f in frames if f[0] <= target), key=lambda f: f[0])
             images.append(render(task, ball, poses, size=256))
             captions.append(f"t={target / sim.FPS:.1f}s")
         strip = stack_frames(images, captions, height=256)
