@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import sys
 import tempfile
+from pathlib import Path
 
 import pytest
 
@@ -20,6 +21,16 @@ TESTS = os.path.dirname(os.path.abspath(__file__))
 os.environ["PYTHONPATH"] = os.pathsep.join(p for p in [TESTS, os.environ.get("PYTHONPATH", "")] if p)
 
 RAY_TIMEOUT_S = 120
+# The team's ground-truth data sits beside the repository (../shared/data; CI puts it there).
+SHARED_DATA = Path(os.environ.get("DEEPPHY_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+
+
+def shared_data(name: str) -> Path:
+    path = SHARED_DATA / name
+    if not path.exists():
+        raise FileNotFoundError(f"{path} is missing: the tests read the team's ground truth from ../shared/data "
+                                "beside the repository (or set DEEPPHY_SHARED_DATA)")
+    return path
 
 
 @pytest.fixture(scope="session")

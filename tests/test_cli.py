@@ -114,5 +114,10 @@ def test_solve_reports_phyre_solvability(tmp_path, capsys):
     out = tmp_path / "solvability.json"
     assert main(["solve", "--env", "phyre", "report", "--limit", "2", "--jobs", "1", "--out", str(out)]) == 0
     report = json.loads(out.read_text())
-    assert report["summary"]["tasks"] == 2 and report["summary"]["solvable_in_continuous_space"] == 2
-    assert all(t["solvable"] for t in report["tasks"])
+    summary = report["summary"]
+    assert summary["tasks"] == 2 and len(report["actions"]) == 125
+    for row in report["tasks"]:
+        assert len(row["statuses"]) == 125 and set(row["statuses"]) <= {-1, 0, 1}
+        assert row["solving_grid_actions"] == row["statuses"].count(1) == len(row["solving"])
+    assert summary["solvable_on_grid"] == sum(r["solving_grid_actions"] > 0 for r in report["tasks"])
+    assert "solvable on the grid" in capsys.readouterr().out

@@ -1,17 +1,26 @@
-"""PHYRE environment: task list, folds, observations, invalid placements, determinism."""
+"""PHYRE environment: task lists and ids, observations and prompts, attempts."""
+
+from __future__ import annotations
 
 import json
-import subprocess
-import sys
-import time
+from pathlib import Path
 
-from deepphy.envs import Planning, get_env_class
-from deepphy.envs.phyre.env import PhyreEnv, PhyreOptions
-from deepphy.envs.phyre.space import PhyreAction
-from deepphy.envs.phyre import scene as S
-from deepphy.envs.phyre.env import cross_test_templates, within_test_variants
-from deepphy.envs.phyre.templates import templates, variant_scene
+import pytest
+
+from conftest import shared_data
+from pydantic import ValidationError
+
+from deepphy.envs import Planning, Task, get_env_class
+from deepphy.envs.phyre import PhyreAction, PhyreContinuousAction
+from deepphy.envs.phyre.env import PhyreEnv, PhyreOptions, phyre_id, task_id
 from deepphy.prompts import PromptFormat, build_messages
+
+GROUND_TRUTH = json.loads(shared_data("phyre_real_grid_outcomes.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def default_tasks() -> dict[str, Task]:
+    return {t.id: t for t in PhyreEnv.tasks(PhyreOptions())}
 
 
 def test_registered_and_contract():
@@ -20,81 +29,81 @@ def test_registered_and_contract():
     assert cls.spec.planning is Planning.IN_ADVANCE and cls.spec.max_steps == 1 and cls.spec.max_attempts == 10
 
 
-def test_default_task_set_is_fast_and_follows_the_folds():
-    t0 = time.time()
-    tasks = PhyreEnv.tasks(PhyreOptions())
-    assert time.time() - t0 < 1.0
-    assert len({t.id for t in tasks}) == len(tasks)
-    within = [t for t in tasks if t.group == "within"]
-    cross = [t for t in tasks if t.group == "cross"]
-    n = len(templates())
-    assert len(within) == 20 * n
-    assert len(cross) == 100 * len([t for t in cross_test_templates(0) if t in templates()])
-    if n == 25:
-        assert len(tasks) == 1000
-    assert len(cross_test_templates(0)) == 5 and len(within_test_variants(0, 3)) == 20
-    assert cross_test_templates(1) != cross_test_templates(0)  # the fold seed selects the split
-    all_tasks = PhyreEnv.tasks(PhyreOptions(splits="all"))
-    assert len(all_tasks) == 100 * n
+def test_default_task_set_is_both_fold0_test_sets(default_tasks):
+    tasks = list(default_tasks.values())
+    assert len(tasks) == 1000
+    assert [t.group for t in tasks] == ["within"] * 500 + ["cross"] * 500
+    distinct = {t.params["phyre_id"] for t in tasks}
+    assert len(distinct) == 900  # 100 tasks are test tasks of both setups
+    cross_templates = sorted({t.params["template"] for t in tasks if t.group == "cross"})
+    assert cross_templates == ["00003", "00004", "00014", "00015", "00019"]
+    for t in tasks:
+        assert t.id == task_id(t.group, t.params["phyre_id"]) and t.id.replace("_", "").replace("-", "").isalnum()
+        assert phyre_id(Task(env="phyre", id=t.id)) == t.params["phyre_id"]  # the id alone suffices
 
 
-def test_observation_images_and_prompt():
-    task = PhyreEnv.tasks(PhyreOptions())[0]
-    env = PhyreEnv()
+def test_options_select_setup_split_and_fold():
+    within_dev = PhyreEnv.tasks(PhyreOptions(setup="within", split="dev"))
+    assert len(within_dev) == 400 and {t.group for t in within_dev} == {"within"}
+    cross_train = PhyreEnv.tasks(PhyreOptions(setup="cross", split="train", fold=3))
+    assert len(cross_train) == 1600 and len({t.params["template"] for t in cross_train}) == 16
+    assert PhyreEnv.tasks(PhyreOptions(fold=1)) != PhyreEnv.tasks(PhyreOptions(fold=0))
+    for bad in ({"fold": 10}, {"setup": "all"}, {"split": "val"}, {"actions": "grid6"}, {"grid": 5}):
+        with pytest.raises(ValidationError):
+            PhyreOptions(**bad)
+
+
+@pytest.mark.parametrize("actions, second, syntax", [
+    ("grid5", "grid", "Cell: <1..25>, Radius: <1..5>"),
+    ("grid8", "grid", "Cell: <1..64>, Radius: <1..8>"),
+    ("continuous", "axes", "X: <0..1>, Y: <0..1>, R: <0..1>"),
+])
+def test_observation_images_and_prompt(default_tasks, actions, second, syntax):
+    task = default_tasks["cross_00003-004"]
+    env = PhyreEnv(PhyreOptions(actions=actions))
     obs = env.reset(task)
-    assert [i.name for i in obs.images] == ["scene", "grid"]
-    scene, grid = (i.to_array() for i in obs.images)
-    assert scene.shape == grid.shape == (512, 512, 3) and (scene != grid).any()
-    assert "Goal" in obs.text
+    assert [i.name for i in obs.images] == ["scene", second]
+    scene, overlay = (i.to_array() for i in obs.images)
+    assert scene.shape == overlay.shape == (512, 512, 3) and (scene != overlay).any()
+    assert obs.text.startswith("Goal: Make sure the green") and task.params["phyre_id"] in obs.text
     for fmt in PromptFormat:
-        msgs = build_messages(PhyreEnv.spec.load_prompt(), fmt, task, obs, [])
-        assert "Cell: <1..25>, Radius: <1..5>" in msgs[0].text and "TOP-LEFT" in msgs[0].text
+        text = build_messages(PhyreEnv.spec.load_prompt(), fmt, task, obs, [])[0].text
+        assert syntax in text and "3 seconds" in text and "16.7 seconds" in text
+    if actions == "grid5":
+        assert "1 = 2 px, 2 = 10 px, 3 = 17 px, 4 = 24 px, 5 = 32 px" in text and "TOP-LEFT" in text
 
 
-def test_overlapping_and_outside_placements_are_invalid():
+def test_attempts_reproduce_real_phyre(default_tasks):
+    ground_truth_id = sorted(GROUND_TRUTH["outcomes"])[0]
+    task = default_tasks[task_id("within", ground_truth_id)]
     env = PhyreEnv()
-    task = next(t for t in PhyreEnv.tasks(PhyreOptions(splits="all")) if t.params["template"] == 0)
     env.reset(task)
-    scene = variant_scene(0, task.params["variant"])
-    green = scene.objects[scene.subject]
-    # a grid action whose ball covers the green ball's centre
-    space = env.space
-    hit = next(a for a in space.all_actions() if a.radius == 5 and
-               abs(space.to_scene(a)[0] - green.x) < 26 and abs(space.to_scene(a)[1] - green.y) < 26)
-    res = env.step(hit)
-    assert res.done and not res.success and res.invalid_reason and "overlaps" in res.invalid_reason
-    res = env.step(PhyreAction(cell=1, radius=5))  # radius 32 at (25.6, 230.4) sticks out
-    assert res.done and not res.success and "inside the scene" in res.invalid_reason
-    assert S.placement_problem(scene, green.x + green.size[0] + 5.1, green.y, 5) is None  # near but clear
+    statuses = GROUND_TRUTH["outcomes"][ground_truth_id]
+
+    def grid_action(status: int) -> PhyreAction:
+        cell, radius = GROUND_TRUTH["actions"][statuses.index(status)]
+        return PhyreAction(cell=cell, radius=radius)
+
+    result = env.step(grid_action(1))
+    assert result.done and result.success and result.invalid_reason is None
+    assert result.feedback.startswith("solved") and result.info["steps"] <= 1000
+    strip = result.key_frames[0].to_array()
+    assert strip.shape[0] == 256 and strip.shape[1] > 4 * 256
+    assert env.step(grid_action(1)).model_dump() == result.model_dump()  # the same action, the same attempt
+    bad = env.step(grid_action(0))
+    assert bad.done and not bad.success and bad.invalid_reason and not bad.key_frames
+    miss = env.step(grid_action(-1))
+    assert miss.done and not miss.success and miss.invalid_reason is None and miss.feedback.startswith("not solved")
 
 
-DETERMINISM = """
-import json, sys
-from deepphy.envs.phyre import scene as S
-from deepphy.envs.phyre.templates import templates, variant_scene
-out = []
-for t in sorted(templates()):
-    sc = variant_scene(t, 7)
-    o = S.simulate(sc, (128.0, 240.0, 9.5), snapshot_every=100)
-    out.append([repr(sc), o.success, o.steps, [[round(v, 9) for v in st] for _, s in o.snapshots for st in s]])
-print(json.dumps(out))
-"""
-
-
-def test_determinism_across_processes():
-    runs = []
-    for seed in ("0", "12345"):
-        proc = subprocess.run([sys.executable, "-c", DETERMINISM], capture_output=True, text=True, check=True,
-                              env={"PYTHONHASHSEED": seed, "PATH": ""})
-        runs.append(json.loads(proc.stdout))
-    assert runs[0] == runs[1]
-
-
-def test_episode_speed():
-    t0 = time.time()
-    n = 0
-    for t in sorted(templates()):
-        sc = variant_scene(t, 0)
-        S.simulate(sc, max_steps=1000)
-        n += 1
-    assert (time.time() - t0) / n < 0.1
+def test_continuous_attempt_and_bad_task(default_tasks):
+    env = PhyreEnv(PhyreOptions(actions="continuous"))
+    env.reset(next(iter(default_tasks.values())))
+    out = env.step(PhyreContinuousAction(x=0.5, y=0.0, r=0.5))
+    assert out.invalid_reason and "inside the scene" in out.invalid_reason
+    ok = env.step(PhyreContinuousAction(x=0.1, y=0.9, r=0.1))
+    assert ok.invalid_reason is None and ok.info["ball_px"] == [25, 229, 5]
+    with pytest.raises(ValueError, match="not a PHYRE task id"):
+        env.reset(Task(env="phyre", id="t07_v42"))
+    with pytest.raises(ValueError, match="unknown PHYRE task"):
+        env.reset(Task(env="phyre", id="within_00099-999"))

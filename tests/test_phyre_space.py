@@ -1,10 +1,11 @@
-"""PHYRE action space: parsing, sampling, grid geometry (no physics)."""
+"""PHYRE action spaces: parsing, sampling, grid geometry and PHYRE's action triples (no physics)."""
 
 import numpy as np
 import pytest
 
 from deepphy.envs import ActionSpace, InvalidAction
-from deepphy.envs.phyre.space import PhyreAction, PhyreSpace
+from deepphy.envs.phyre.env import SPACES
+from deepphy.envs.phyre.space import PhyreAction, PhyreContinuousAction, PhyreContinuousSpace, PhyreSpace
 
 SPACE = PhyreSpace()
 
@@ -45,13 +46,26 @@ def test_format_round_trip_and_json():
 
 
 def test_grid_numbering_from_top_left():
-    x, y, r = SPACE.to_scene(PhyreAction(cell=1, radius=1))
-    assert (round(x, 1), round(y, 1), r) == (25.6, 230.4, 2.0)  # top-left; y grows upward
-    x, y, r = SPACE.to_scene(PhyreAction(cell=5, radius=5))
-    assert (round(x, 1), round(y, 1), r) == (230.4, 230.4, 32.0)  # top-right
-    x, y, _ = SPACE.to_scene(PhyreAction(cell=25, radius=3))
-    assert (round(x, 1), round(y, 1)) == (230.4, 25.6)  # bottom-right
+    assert SPACE.cell_centre(1) == pytest.approx((25.6, 230.4))  # top-left; y grows upward
+    assert SPACE.cell_centre(5) == pytest.approx((230.4, 230.4))  # top-right
+    assert SPACE.cell_centre(25) == pytest.approx((230.4, 25.6))  # bottom-right
     assert [SPACE.radius_px(k) for k in range(1, 6)] == [2.0, 9.5, 17.0, 24.5, 32.0]
+
+
+def test_grid_actions_are_the_ground_truths_phyre_triples():
+    # phyre_real_grid_outcomes.json: x=(col+0.5)*256/5, y=256-(row+0.5)*256/5, triple (x/255, y/255, (r-2)/30)
+    for a in SPACE.all_actions():
+        row, col = divmod(a.cell - 1, 5)
+        x, y, r = (col + 0.5) * 256 / 5, 256 - (row + 0.5) * 256 / 5, [2, 9.5, 17, 24.5, 32][a.radius - 1]
+        assert SPACE.to_phyre(a) == (x / 255, y / 255, (r - 2) / 30)
+
+
+def test_reference_grid_has_8x8_cells_and_8_radius_levels():
+    space = SPACES["grid8"]
+    assert len(space.all_actions()) == 512
+    radii = [space.to_phyre(PhyreAction(cell=1, radius=k))[2] for k in range(1, 9)]
+    assert radii == pytest.approx([0.0625 + (k - 1) / 7 * 0.9375 for k in range(1, 9)])
+    assert space.cell_centre(64) == (240.0, 16.0)
 
 
 def test_configurable_grid():
@@ -75,3 +89,39 @@ def test_sample_uniform_and_excludes():
         assert a not in tried
         tried.append(a)
     assert SPACE.sample(rng, exclude=tried) in tried  # all used: repeats are unavoidable
+
+
+CONTINUOUS = PhyreContinuousSpace()
+
+
+@pytest.mark.parametrize(
+    "text, xyr",
+    [
+        ("X: 0.31, Y: 0.72, R: 0.4", (0.31, 0.72, 0.4)),
+        ("x=0.5 y=0.25 r=1", (0.5, 0.25, 1.0)),
+        ("**X:** 0.1\n**Y:** 0.9\n**R:** 0", (0.1, 0.9, 0.0)),
+        ("X: .5, Y: 0.5, R: 0.5 -- no wait, X: 0.6, Y: 0.4, R: 0.2", (0.6, 0.4, 0.2)),
+        ("The box: 0.9 is left. Max: 3. X: 0.2, Y: 0.3, R: 0.1", (0.2, 0.3, 0.1)),
+    ],
+)
+def test_continuous_parse_accepts(text, xyr):
+    assert CONTINUOUS.parse(text) == PhyreContinuousAction(x=xyr[0], y=xyr[1], r=xyr[2])
+
+
+@pytest.mark.parametrize("text", ["", "X: 0.5, Y: 0.5", "X: 1.5, Y: 0.5, R: 0.5", "X: 0.5, Y: -0.1, R: 0.5",
+                                  "Cell: 3, Radius: 2", "X: a, Y: b, R: c"])
+def test_continuous_parse_rejects(text):
+    with pytest.raises(InvalidAction):
+        CONTINUOUS.parse(text)
+
+
+def test_continuous_round_trip_sample_and_triple():
+    rng = np.random.default_rng(1)
+    seen = set()
+    for _ in range(200):
+        a = CONTINUOUS.sample(rng)
+        assert CONTINUOUS.parse(CONTINUOUS.format(a)) == a
+        assert CONTINUOUS.to_phyre(a) == (a.x, a.y, a.r)
+        seen.add((a.x, a.y, a.r))
+    assert len(seen) == 200
+    assert ActionSpace.from_json(CONTINUOUS.model_dump()) == CONTINUOUS

@@ -1,14 +1,17 @@
-"""PHYRE-B on pymunk: our own implementation of the 25 PHYRE-B templates.
+"""PHYRE-B: the real PHYRE tasks (phyre 0.2.2's data) simulated on Box2D with PHYRE's rules.
 
-- `scene.py`: objects, simulation with PHYRE's success rule, rendering;
-- `templates/`: the 25 task templates (template API in `templates/__init__.py`);
-- `space.py`: the `Cell: N, Radius: R` action space (light, no physics imports);
-- `env.py`: the Environment (folds, observations, attempts); `prompt.py`: the words;
-- `solve.py`: solvability search and variant verification (`deepphy solve --env phyre`).
+- `thrift.py`: a small reader for Thrift's binary protocol (PHYRE's data format);
+- `data.py`: fetching, verifying, decoding and caching the task data (first use);
+- `splits.py`: PHYRE's evaluation setups and folds (md5-based shuffles);
+- `space.py`: PHYRE's ball action mapper and the action spaces (grid, continuous);
+- `sim.py`: the Box2D simulation with PHYRE's constants, goal test and placement rules;
+- `render.py`: drawing scenes in PHYRE's colours;
+- `env.py`: the Environment (task lists, observations, attempts);
+- `solve.py`: solvability of the evaluation set (`deepphy solve --env phyre report`).
 """
 
 from deepphy.envs.base import Planning
-from deepphy.envs.phyre.space import PhyreAction, PhyreSpace
+from deepphy.envs.phyre.space import PhyreAction, PhyreContinuousAction, PhyreContinuousSpace, PhyreSpace
 from deepphy.envs.spec import EnvSpec, ReportSpec
 
 SPEC = EnvSpec(
@@ -21,7 +24,7 @@ SPEC = EnvSpec(
     max_steps=1,
     report=ReportSpec(auccess=True),
     solver="deepphy.envs.phyre.solve:main",
-    description="place one red ball so the green object reaches its goal (within- and cross-template test sets)",
+    description="the real PHYRE-B tasks on Box2D: place one red ball so the green object reaches its goal",
 )
 
-__all__ = ["SPEC", "PhyreAction", "PhyreSpace"]
+__all__ = ["SPEC", "PhyreAction", "PhyreContinuousAction", "PhyreContinuousSpace", "PhyreSpace"]

@@ -1,63 +1,70 @@
-"""The PHYRE environment: place one red ball so that the green object reaches its goal.
+"""The PHYRE environment: place one red ball so that PHYRE's goal holds for 3 seconds.
 
-Tasks are PHYRE-B: 25 templates (00..24) x 100 variants each (see `templates/`). The
-evaluation set follows PHYRE's folds, selected by `fold` (a seed):
-- within-template: every template's 100 variants are shuffled; the last 20 are test
-  tasks (80/20) -> 25 x 20 = 500 tasks, group "within";
-- cross-template: the 25 templates are shuffled; the last 5 are test templates (80/20),
-  all their variants are test tasks -> 5 x 100 = 500 tasks, group "cross".
-Task ids are `<group>_t<template>_v<variant>`, e.g. `within_t07_v42`; a variant that is in
-both sets appears twice, once per group.
+Tasks are the real PHYRE-B tasks (`data.py`: 25 templates x 100 tasks, PHYRE's geometry),
+simulated on Box2D with PHYRE's rules (`sim.py`). The task list follows PHYRE's evaluation
+setups and folds (`splits.py`): options `setup` (within | cross | both), `fold` (0-9) and
+`split` (train | dev | test). Default: the fold-0 test tasks of both setups, 500 + 500; the
+100 within-template test tasks of the five held-out templates are in both and appear once
+per setup.
 
-Action: `Cell: N, Radius: R` (see `space.py` for the grid numbering). A placement that
-overlaps an object or sticks out of the scene is an invalid attempt (done, not solved,
-`invalid_reason` set), as in PHYRE where such attempts do not count for AUCCESS.
+Task ids carry the setup and PHYRE's id, written filesystem-safe: `within_00022-004` is
+PHYRE task `00022:004` in `ball_within_template`, `cross_00003-012` is `00003:012` in
+`ball_cross_template`; the group is the setup (`within` / `cross`).
+
+Actions (option `actions`): `grid5` (the paper's 5 x 5 cells x 5 radii, `Cell: N,
+Radius: R`), `grid8` (the reference code's 8 x 8 cells x 8 radii) or `continuous`
+(PHYRE's own action, `X: 0.31, Y: 0.72, R: 0.4`; meant for AUCCESS over up to 100
+attempts, e.g. `--max-attempts 100`). A ball that overlaps a body or leaves the scene is
+an invalid attempt (done, not solved, `invalid_reason` set), as in PHYRE, where such
+attempts do not count for AUCCESS.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
+from pydantic import Field
 
 from deepphy.envs.base import Action, EnvOptions, Environment, Observation, StepResult, Task
 from deepphy.envs.images import Image, draw_label, stack_frames
-from deepphy.envs.phyre import SPEC
-from deepphy.envs.phyre import scene as S
-from deepphy.envs.phyre.space import PhyreAction, PhyreSpace
-from deepphy.envs.phyre.templates import NUM_TEMPLATES, VARIANTS, templates, variant_scene
-from deepphy.seeding import seeded_rng
+from deepphy.envs.phyre import SPEC, data, sim
+from deepphy.envs.phyre.render import render
+from deepphy.envs.phyre.space import SCENE, InvalidPlacement, PhyreContinuousSpace, PhyreSpace
+from deepphy.envs.phyre.splits import FOLDS, SETUPS, get_fold
 
-TEST_FRACTION = 0.2
+ActionSpaces = Literal["grid5", "grid8", "continuous"]
+SPACES: dict[str, PhyreSpace | PhyreContinuousSpace] = {
+    "grid5": PhyreSpace(grid=5, radius_levels=5, r_min=2.0, r_max=32.0),  # the paper's
+    "grid8": PhyreSpace(grid=8, radius_levels=8, r_min=3.875, r_max=32.0),  # the reference code's: r 0.0625..1
+    "continuous": PhyreContinuousSpace(),
+}
+FRAME_EVERY = 10  # steps between recorded poses (key frames are picked from these)
+KEY_FRAMES = 4
+OVERLAY = (255, 140, 0)  # grid lines and labels drawn over the scene
 
 
 class PhyreOptions(EnvOptions):
-    fold: int = 0  # seed of the within- and cross-template splits
-    grid: int = 5  # the grid is grid x grid cells
-    radius_levels: int = 5
-    r_min: float = 2.0  # px, smallest radius level (1/128 of the 256 px scene)
-    r_max: float = 32.0  # px, largest radius level (1/8 of the scene)
-    image_size: int = 512  # rendered images are image_size x image_size
-    splits: str = "within,cross"  # which test sets make up the task list
+    setup: Literal["within", "cross", "both"] = "both"  # PHYRE's ball_within_template / ball_cross_template
+    fold: int = Field(0, ge=0, lt=FOLDS)
+    split: Literal["train", "dev", "test"] = "test"
+    actions: ActionSpaces = "grid5"
+    image_size: int = Field(512, ge=128, le=2048)  # rendered images are image_size x image_size
 
 
-def within_test_variants(fold: int, template: int) -> list[int]:
-    order = seeded_rng("phyre-within", fold, template).permutation(VARIANTS)
-    return sorted(int(v) for v in order[int(VARIANTS * (1 - TEST_FRACTION)) :])
+def task_id(setup: str, phyre_id: str) -> str:
+    """`within_00022-004` for PHYRE's `00022:004` in the within-template setup."""
+    return f"{setup}_{phyre_id.replace(':', '-')}"
 
 
-def cross_test_templates(fold: int) -> list[int]:
-    order = seeded_rng("phyre-cross", fold).permutation(NUM_TEMPLATES)
-    return sorted(int(t) for t in order[int(NUM_TEMPLATES * (1 - TEST_FRACTION)) :])
-
-
-def task_id(group: str, template: int, variant: int) -> str:
-    return f"{group}_t{template:02d}_v{variant:02d}"
-
-
-def parse_task_id(task_id_: str) -> tuple[str, int, int]:
-    group, t, v = task_id_.split("_")
-    return group, int(t[1:]), int(v[1:])
+def phyre_id(task: Task) -> str:
+    """PHYRE's id (`00022:004`) of one of our tasks."""
+    if "phyre_id" in task.params:
+        return str(task.params["phyre_id"])
+    setup, sep, rest = task.id.partition("_")
+    if not sep or setup not in SETUPS:
+        raise ValueError(f"not a PHYRE task id: {task.id!r} (expected e.g. within_00022-004)")
+    return rest.replace("-", ":")
 
 
 class PhyreEnv(Environment):
@@ -66,143 +73,150 @@ class PhyreEnv(Environment):
 
     def __init__(self, options: PhyreOptions | None = None) -> None:
         super().__init__(options)
-        self._task: Task | None = None
-        self._scene: S.Scene | None = None
+        self._task: data.PhyreTask | None = None
         # Every attempt starts from the same scene: render and encode it once per task.
         self._initial: dict[str, Observation] = {}
 
     @classmethod
     def tasks(cls, options: PhyreOptions) -> list[Task]:
-        available = templates()
-        out: list[Task] = []
-        splits = [s.strip() for s in options.splits.split(",") if s.strip()]
-        for split in splits:
-            if split == "within":
-                pairs = [(t, v) for t in range(NUM_TEMPLATES) for v in within_test_variants(options.fold, t)]
-            elif split == "cross":
-                pairs = [(t, v) for t in cross_test_templates(options.fold) for v in range(VARIANTS)]
-            elif split == "all":
-                pairs = [(t, v) for t in range(NUM_TEMPLATES) for v in range(VARIANTS)]
-            else:
-                raise ValueError(f"unknown PHYRE split {split!r} (within, cross, all)")
-            for t, v in pairs:
-                if t in available:
-                    out.append(Task(env=SPEC.name, id=task_id(split, t, v), group=split,
-                                    params={"template": t, "variant": v}))
+        all_ids = data.task_ids()
+        setups = list(SETUPS) if options.setup == "both" else [options.setup]
+        out = []
+        for setup in setups:
+            for pid in get_fold(setup, options.fold, all_ids)[options.split]:
+                out.append(Task(env=SPEC.name, id=task_id(setup, pid), group=setup,
+                                params={"phyre_id": pid, "template": pid.split(":")[0], "setup": SETUPS[setup]}))
         return out
 
-    # -- the contract ---------------------------------------------------------------
-
     @property
-    def space(self) -> PhyreSpace:
-        o = self.options
-        return PhyreSpace(grid=o.grid, radius_levels=o.radius_levels, r_min=o.r_min, r_max=o.r_max)
+    def space(self) -> PhyreSpace | PhyreContinuousSpace:
+        return SPACES[self.options.actions]
+
+    # -- the contract ---------------------------------------------------------------------
 
     def reset(self, task: Task) -> Observation:
-        self._task = task
-        self._scene = scene_of(task)
-        if task.id in self._initial:
-            return self._initial[task.id]
-        img = self.render_scene(self._scene)
-        grid = self.draw_grid(img.copy())
-        self._initial[task.id] = Observation(
-            images=[
-                Image.from_array("scene", "The initial scene.", img),
-                Image.from_array("grid", f"The same scene with the numbered {self.options.grid}x{self.options.grid} "
-                                 "grid of cells where the red ball's centre can go.", grid),
-            ],
-            text=describe_goal(self._scene),
-            action_space=self.space,
-        )
+        try:
+            self._task = data.load_task(phyre_id(task))
+        except KeyError:
+            raise ValueError(f"unknown PHYRE task {task.id!r}") from None
+        if task.id not in self._initial:
+            scene = render(self._task, size=self.options.image_size)
+            self._initial[task.id] = Observation(
+                images=[Image.from_array("scene", "The initial scene.", scene), self._overlay(scene)],
+                text=describe_goal(self._task),
+                action_space=self.space,
+            )
         return self._initial[task.id]
 
     def step(self, action: Action) -> StepResult:
-        assert isinstance(action, PhyreAction) and self._scene is not None
-        x, y, r = self.space.to_scene(action)
-        problem = S.placement_problem(self._scene, x, y, r)
-        info: dict[str, Any] = {"x": x, "y": y, "r": r}
-        if problem is not None:
-            return StepResult(terminated=True, success=False, invalid_reason=problem,
-                              feedback=f"invalid placement: {problem}; nothing was simulated", info=info)
-        extra = S.ball(x, y, r, "red")
-        world = S.World(self._scene, extra)
-        outcome = world.run(snapshot_every=15)
-        t_end = outcome.steps / S.FPS
-        if outcome.success:
-            feedback = f"solved: the goal holds for 3 s (decided at t = {t_end:.1f} s)"
-        else:
-            feedback = {
-                "at_rest": f"not solved: everything came to rest at t = {t_end:.1f} s without the goal holding",
-                "time_out": f"not solved within {S.MAX_STEPS / S.FPS:.1f} s",
-                "exploded": "not solved (the simulation became unstable)",
-            }.get(outcome.reason, "not solved")
-            feedback += "; the green object " + ("did touch" if outcome.touched_ever else "never touched") + \
-                (" the goal" if self._scene.relation == "touching" else " the blue ball")
-        frames = _pick(outcome.snapshots, 4)
-        objects = world.objects
-        walls = [g for g in self._scene.goal if isinstance(g, str)]
-        imgs = [S.render(objects, st, walls, size=256) for _, st in frames]
-        strip = stack_frames(imgs, [f"t={s / S.FPS:.1f}s" for s, _ in frames], height=256)
+        assert self._task is not None, "reset() first"
+        task = self._task
+        triple = self.space.to_phyre(action)
+        info: dict[str, Any] = {"phyre_action": list(triple)}
+        try:
+            ball = sim.place(task, *triple)
+        except InvalidPlacement as e:
+            return StepResult(terminated=True, success=False, invalid_reason=str(e),
+                              feedback=f"invalid placement: {e}; nothing was simulated", info=info)
+        outcome = sim.simulate(task, ball, frame_every=FRAME_EVERY)
         return StepResult(
-            terminated=outcome.reason != "time_out",
-            truncated=outcome.reason == "time_out",
-            success=outcome.success,
-            feedback=feedback,
-            key_frames=[Image.from_array("outcome", "frames of what happened (left to right)", strip)],
-            info={**info, "steps": outcome.steps, "end": outcome.reason, "touched": outcome.touched_ever},
+            terminated=outcome.end != "time_out",
+            truncated=outcome.end == "time_out",  # 1000 steps ran out without a decision
+            success=outcome.solved,
+            feedback=describe_outcome(task, outcome),
+            key_frames=[self._strip(task, ball, outcome)],
+            info={**info, "ball_px": list(ball), "steps": outcome.steps, "simulated_steps": outcome.simulated,
+                  "end": outcome.end, "touched": outcome.touched},
         )
 
-    # -- rendering ------------------------------------------------------------------
+    # -- images ---------------------------------------------------------------------------
 
-    def render_scene(self, scene: S.Scene) -> np.ndarray:
-        walls = [g for g in scene.goal if isinstance(g, str)]
-        return S.render(scene.objects, None, walls, size=self.options.image_size)
+    def _overlay(self, scene: np.ndarray) -> Image:
+        img = scene.copy()
+        space = self.space
+        if isinstance(space, PhyreSpace):
+            draw_grid(img, space.grid)
+            n = space.grid
+            return Image.from_array("grid", f"The same scene with the numbered {n}x{n} grid of cells where the "
+                                    "red ball's centre can go.", img)
+        draw_axes(img)
+        return Image.from_array("axes", "The same scene with coordinate lines: X from 0 (left) to 1 (right), "
+                                "Y from 0 (bottom) to 1 (top).", img)
 
-    def draw_grid(self, img: np.ndarray) -> np.ndarray:
-        import cv2
+    def _strip(self, task: data.PhyreTask, ball, outcome: sim.Outcome) -> Image:
+        """Frames at 1/4, 1/2, 3/4 and the end of the simulated time, left to right.
 
-        n = self.options.grid
-        size = img.shape[0]
-        cell = size / n
-        for i in range(1, n):
-            p = int(round(i * cell))
-            cv2.line(img, (p, 0), (p, size - 1), (255, 140, 0), 1, cv2.LINE_AA)
-            cv2.line(img, (0, p), (size - 1, p), (255, 140, 0), 1, cv2.LINE_AA)
-        scale = 0.45 * size / 512 * (5 / n) ** 0.5
-        for k in range(n * n):
-            row, col = divmod(k, n)
-            cx, cy = (col + 0.5) * cell, (row + 0.5) * cell
-            cv2.drawMarker(img, (int(cx), int(cy)), (255, 140, 0), cv2.MARKER_CROSS, max(5, int(cell / 10)), 1)
-            draw_label(img, str(k + 1), (col * cell + cell * 0.18, row * cell + cell * 0.14), scale=scale,
-                       background=(255, 255, 190))
-        return img
-
-
-def scene_of(task: Task) -> S.Scene:
-    t = int(task.params.get("template", parse_task_id(task.id)[1]))
-    v = int(task.params.get("variant", parse_task_id(task.id)[2]))
-    return variant_scene(t, v)
-
-
-def describe_goal(scene: S.Scene) -> str:
-    names = []
-    for g in scene.goal:
-        if isinstance(g, str):
-            names.append(f"the {g} wall (purple edge)")
-        else:
-            o = scene.objects[g]
-            names.append(f"the {o.color} {o.kind}")
-    subject = scene.objects[scene.subject]
-    targets = " or ".join(names)
-    if scene.relation == "touching":
-        goal = f"Goal: make the green {subject.kind} touch {targets} and keep touching for 3 seconds."
-    else:
-        goal = f"Goal: make sure the green {subject.kind} does NOT touch {targets} (apart for 3 seconds or more)."
-    return goal + (f"\nTask: {scene.description}" if scene.description else "")
+        Past the last computed step the scene is at rest (or the goal completed), so the
+        last recorded poses are the true poses of any later step."""
+        end = outcome.steps if outcome.end != "time_out" else outcome.simulated
+        targets = [round(end * k / KEY_FRAMES) for k in range(1, KEY_FRAMES + 1)]
+        frames = outcome.frames
+        images, captions = [], []
+        for target in targets:
+            _, poses = max((f for f in frames if f[0] <= target), key=lambda f: f[0])
+            images.append(render(task, ball, poses, size=256))
+            captions.append(f"t={target / sim.FPS:.1f}s")
+        strip = stack_frames(images, captions, height=256)
+        return Image.from_array("outcome", "frames of what happened (left to right)", strip)
 
 
-def _pick(snapshots: list, n: int) -> list:
-    if len(snapshots) <= n:
-        return snapshots
-    idx = np.linspace(0, len(snapshots) - 1, n).round().astype(int)
-    return [snapshots[i] for i in idx]
+def draw_grid(img: np.ndarray, n: int) -> np.ndarray:
+    """Number the n x n cells 1..n^2 row by row from the top-left; mark each cell's centre."""
+    import cv2
+
+    size = img.shape[0]
+    cell = size / n
+    for i in range(1, n):
+        p = int(round(i * cell))
+        cv2.line(img, (p, 0), (p, size - 1), OVERLAY, 1, cv2.LINE_AA)
+        cv2.line(img, (0, p), (size - 1, p), OVERLAY, 1, cv2.LINE_AA)
+    scale = 0.45 * size / 512 * (5 / n) ** 0.5
+    for k in range(n * n):
+        row, col = divmod(k, n)
+        cx, cy = (col + 0.5) * cell, (row + 0.5) * cell
+        cv2.drawMarker(img, (int(cx), int(cy)), OVERLAY, cv2.MARKER_CROSS, max(5, int(cell / 10)), 1)
+        draw_label(img, str(k + 1), (col * cell + cell * 0.18, row * cell + cell * 0.14), scale=scale,
+                   background=(255, 255, 190))
+    return img
+
+
+def draw_axes(img: np.ndarray, ticks: int = 10) -> np.ndarray:
+    """Lines at X, Y = 0.1 .. 0.9 (PHYRE's action units: px = value * 255, y up), labelled."""
+    import cv2
+
+    size = img.shape[0]
+    px = size / SCENE
+    scale = 0.4 * size / 512
+    for k in range(1, ticks):
+        v = k / ticks
+        x = int(round(v * (SCENE - 1) * px))
+        y = int(round((SCENE - v * (SCENE - 1)) * px))
+        cv2.line(img, (x, 0), (x, size - 1), OVERLAY, 1, cv2.LINE_AA)
+        cv2.line(img, (0, y), (size - 1, y), OVERLAY, 1, cv2.LINE_AA)
+        draw_label(img, f"{v:.1f}", (x, size - 10), scale=scale, background=(255, 255, 190))
+        draw_label(img, f"{v:.1f}", (16, y), scale=scale, background=(255, 255, 190))
+    return img
+
+
+def describe_goal(task: data.PhyreTask) -> str:
+    seconds = sim.SOLVED_STEPS / sim.FPS
+    return f"Goal: {task.description.rstrip('.')} for at least {seconds:g} seconds in a row (PHYRE task {task.id})."
+
+
+def describe_outcome(task: data.PhyreTask, outcome: sim.Outcome) -> str:
+    pair = [task.bodies[task.body1], task.bodies[task.body2]]
+    pair.sort(key=lambda b: b.color != "green")  # the green object is the subject of the sentence
+    subject, target = (_name(b) for b in pair)
+    held, total = sim.SOLVED_STEPS / sim.FPS, sim.MAX_STEPS / sim.FPS
+    if outcome.solved:
+        return f"solved: the {subject} kept touching the {target} for {held:g} s (at t = {outcome.steps / sim.FPS:.1f} s)"
+    how = {
+        "at_rest": f"everything came to rest at t = {outcome.simulated / sim.FPS:.1f} s",
+        "time_out": f"the goal was not held for {held:g} s within {total:.1f} s",
+    }[outcome.end]
+    touched = "touched" if outcome.touched else "never touched"
+    return f"not solved: {how}; the {subject} {touched} the {target}"
+
+
+def _name(body: data.Body) -> str:
+    return f"{body.color} {body.kind}"

@@ -1,50 +1,70 @@
-"""PHYRE prompt: place one red ball so that the green object reaches its goal."""
+"""PHYRE prompt: place one red ball so that PHYRE's goal holds for 3 seconds.
+
+Every number comes from the environment: the scene size, the simulated time and the
+goal's duration from `deepphy.envs.phyre.sim`/`space`, the grid and radii from the space.
+"""
 
 from deepphy.envs.base import Observation, Task
-from deepphy.envs.phyre.scene import FPS, MAX_STEPS, SOLVE_STEPS, W
+from deepphy.envs.phyre import sim
+from deepphy.envs.phyre.space import MAX_RADIUS, MIN_RADIUS, SCENE, PhyreContinuousSpace, PhyreSpace
 from deepphy.prompts.base import EnvPrompt
 
 
 class PhyrePrompt(EnvPrompt):
     def rules(self, task: Task, observation: Observation) -> str:
         space = observation.action_space
-        g, levels = space.grid, space.radius_levels  # type: ignore[attr-defined]
-        n = g * g
-        radii = ", ".join(f"{k} = {space.radius_px(k):g} px" for k in range(1, levels + 1))  # type: ignore[attr-defined]
-        return f"""You are solving a PHYRE physics puzzle.
+        held = sim.SOLVED_STEPS / sim.FPS
+        total = sim.MAX_STEPS / sim.FPS
+        head = f"""You are solving a PHYRE physics puzzle.
 
-The scene is a 2D side view, {W:g} x {W:g} pixels, with gravity pulling everything down.
+The scene is a 2D side view, {SCENE} x {SCENE} pixels, with gravity pulling everything down.
 The edges of the picture are solid walls and the bottom edge is the floor.
 Colours:
 - black: fixed objects; they never move;
 - gray: loose objects that fall, roll, slide and tip over;
 - green: the loose object your goal is about;
-- blue: a loose goal object; purple: a fixed goal object (a purple strip along an edge
-  means that wall or floor is the goal object);
+- blue: a loose goal object; purple: a fixed goal object;
 - red: the ball you add.
-Objects are balls, bars, open jars (cups) and wedges. All objects have the same density,
-so a bigger ball is heavier. Objects bounce only a little.
+Objects are balls, bars and jars (open cups). All objects have the same density, so a
+bigger ball is heavier. Objects bounce only a little.
 
 Your move: add one red ball to the scene before the simulation starts; then nothing else
-can be changed. The simulation runs for up to about {MAX_STEPS / FPS:.0f} seconds. The goal (stated below
-the images) must hold for {SOLVE_STEPS / FPS:g} seconds in a row: when it asks that the green object touches
-a goal object, they must stay in contact for {SOLVE_STEPS / FPS:g} seconds; brief bounces do not count.
+can be changed. The simulation runs for up to {total:.1f} seconds. The goal (stated below
+the images) must hold for {held:g} seconds in a row: the two goal objects must stay in
+contact for {held:g} seconds; brief bounces do not count.
 
-Where the ball goes: the second image overlays a {g} x {g} grid of cells, numbered 1 to {n}
+"""
+        if isinstance(space, PhyreContinuousSpace):
+            where = f"""Where the ball goes: X and Y are the position of the ball's centre as fractions of the
+scene: X from 0 (left edge) to 1 (right edge), Y from 0 (BOTTOM edge) to 1 (top edge); the
+second image shows lines at every 0.1. R sets the radius: R = 0 is {MIN_RADIUS} px, R = 1 is {MAX_RADIUS} px,
+linear in between. The ball starts at rest and falls as soon as the simulation starts.
+
+Answer format: X: <0..1>, Y: <0..1>, R: <0..1>"""
+        else:
+            assert isinstance(space, PhyreSpace)
+            g, levels = space.grid, space.radius_levels
+            n = g * g
+            radii = ", ".join(f"{k} = {space.simulated_radius(k)} px" for k in range(1, levels + 1))
+            where = f"""Where the ball goes: the second image overlays a {g} x {g} grid of cells, numbered 1 to {n}
 row by row starting at the TOP-LEFT cell (1 is top-left, {g} is top-right, {n} is
 bottom-right). The centre of the red ball is placed at the centre of the chosen cell
-(marked with a small cross). Radius levels: {radii} (the whole scene is {W:g} px wide; a
-grid cell is {W / g:g} px wide). The ball starts at rest and falls as soon as the
+(marked with a small cross). Radius levels: {radii} (the whole scene is {SCENE} px wide; a
+grid cell is {SCENE / g:g} px wide). The ball starts at rest and falls as soon as the
 simulation starts.
 
-Answer format: Cell: <1..{n}>, Radius: <1..{levels}>
+Answer format: Cell: <1..{n}>, Radius: <1..{levels}>"""
+        return head + where + """
 
-Validity: the ball must lie entirely inside the scene and must not overlap any object.
-A placement that breaks either rule is an invalid attempt: nothing is simulated and the
-attempt is used up. An answer that is not in the format above is also an invalid attempt."""
+Validity: the ball must lie entirely inside the scene and must not overlap any object
+(touching is allowed). A placement that breaks either rule is an invalid attempt: nothing
+is simulated and the attempt is used up. An answer that is not in the format above is also
+an invalid attempt."""
 
     def prediction_hint(self) -> str:
         return "what the red ball will hit, where the green object will end up, and whether the goal will hold"
 
     def example(self, observation: Observation) -> str:
+        if isinstance(observation.action_space, PhyreContinuousSpace):
+            return "X: 0.5, Y: 0.8, R: 0.3"
         return "Cell: 8, Radius: 3"

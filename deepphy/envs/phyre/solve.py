@@ -1,18 +1,15 @@
-"""Solvability of PHYRE tasks: search for solving placements, verify generated variants.
+"""Solvability of the PHYRE evaluation set: which tasks the grid actions (can) solve.
 
-    python -m deepphy.envs.phyre.solve report [--out FILE] [--jobs N] [--splits within,cross]
-        For every task of the evaluation set: simulate all grid actions (default 5x5
-        cells x 5 radii = 125), count the solving ones; when none solves, run the
-        continuous search (a 64 x 64 x 16 lattice of (x, y, r) visited in a seeded random
-        order, stopping at the first solution). Writes a JSON report (per task: number of
-        solving grid actions, the solving actions, a continuous solution) and prints the
-        summary.
+    python -m deepphy.envs.phyre.solve report [--out FILE] [--setup both] [--fold 0]
+        [--split test] [--actions grid5] [--continuous N] [--jobs J] [--limit N]
 
-    python -m deepphy.envs.phyre.solve generate [--templates 0,1,...] [--jobs N]
-        Offline, once per template change: for each variant pick the first sub-seed whose
-        scene (a) is not solved without a ball, stays stable and in the scene, and (b) has
-        a solving placement in the continuous space. Writes `templates/variants.json`
-        (sub-seed and one solving placement per variant). `tasks()` never simulates.
+For every distinct PHYRE task of the selected set: simulate every action of the grid
+(grid5: 5 x 5 cells x 5 radii = 125), count the invalid and the solving ones; with
+`--continuous N`, tasks no grid action solves get up to N random valid continuous actions
+(seeded by the task id) until one solves. Writes a JSON report (per task, per setup and
+template, overall) and prints the summary. The expected success of a uniformly random
+grid agent within 10 attempts (invalid attempts counted, with and without repeats) follows
+exactly from the per-task counts.
 
 `main(argv)` is the entry point (wired to `deepphy solve --env phyre`).
 """
@@ -25,203 +22,120 @@ import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from math import comb
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 
 from deepphy.seeding import seeded_rng
-from deepphy.envs.phyre import scene as S
-from deepphy.envs.phyre.space import PhyreSpace
+from deepphy.envs.phyre import data, sim
+from deepphy.envs.phyre.env import SPACES, PhyreEnv, PhyreOptions
+from deepphy.envs.phyre.space import InvalidPlacement, PhyreSpace
 
-CONT_XY = 64  # continuous search lattice: 64 x 64 positions ...
-CONT_R = 16  # ... x 16 radii from r_min to r_max
-MAX_SUB_SEEDS = 200
-
-
-def no_action_problem(scene: S.Scene) -> str | None:
-    """Why a scene is unusable without any ball placed (None when fine)."""
-    o = S.simulate(scene)
-    if o.success:
-        return "solved without a ball"
-    if o.reason == "exploded" or o.max_speed > 600:
-        return f"unstable (max speed {o.max_speed:.0f} px/s)"
-    if o.left_scene:
-        return "an object left the scene"
-    return None
+RANDOM_AGENT_ATTEMPTS = 10  # the paper's K
 
 
-def grid_results(scene: S.Scene, space: PhyreSpace) -> tuple[list[str], int]:
-    """(solving actions as text, number of valid actions) over every grid action."""
-    solving, valid = [], 0
-    for a in space.all_actions():
-        x, y, r = space.to_scene(a)
-        if S.placement_problem(scene, x, y, r) is not None:
+def grid_statuses(task: data.PhyreTask, space: PhyreSpace) -> list[int]:
+    """PHYRE's status per grid action, in `space.all_actions()` order: 1 solved, -1 not, 0 invalid."""
+    out = []
+    for action in space.all_actions():
+        try:
+            ball = sim.place(task, *space.to_phyre(action))
+        except InvalidPlacement:
+            out.append(0)
             continue
-        valid += 1
-        if S.simulate(scene, (x, y, r)).success:
-            solving.append(space.format(a))
-    return solving, valid
+        out.append(1 if sim.simulate(task, ball).solved else -1)
+    return out
 
 
-def continuous_candidates(key: Iterable, r_min: float = 2.0, r_max: float = 32.0, limit: int | None = None):
-    """A seeded random order over the continuous lattice (x, y, r)."""
-    rng = seeded_rng("phyre-continuous", *key)
-    n = CONT_XY * CONT_XY * CONT_R
-    order = rng.permutation(n)[:limit]
-    for idx in order:
-        ix, rest = divmod(int(idx), CONT_XY * CONT_R)
-        iy, ir = divmod(rest, CONT_R)
-        x = (ix + 0.5) * S.W / CONT_XY
-        y = (iy + 0.5) * S.H / CONT_XY
-        r = r_min + (r_max - r_min) * ir / (CONT_R - 1)
-        yield x, y, r
-
-
-def continuous_search(scene: S.Scene, key: Iterable, limit: int | None = None,
-                      first: tuple | None = None) -> tuple[tuple[float, float, float] | None, int]:
-    """(first solving placement found, simulations run)."""
-    sims = 0
-    cands = continuous_candidates(key, limit=limit)
-    if first is not None:
-        cands = iter([first, *cands])
-    for x, y, r in cands:
-        if S.placement_problem(scene, x, y, r) is not None:
+def continuous_search(task: data.PhyreTask, budget: int) -> tuple[list[float] | None, int]:
+    """(first solving action (x, y, r) found, valid simulations run) over random actions."""
+    rng = seeded_rng("phyre-continuous-search", task.id)
+    sims = tries = 0
+    while sims < budget and tries < 50 * budget:
+        tries += 1
+        action = [round(float(v), 4) for v in rng.random(3)]
+        try:
+            ball = sim.place(task, *action)
+        except InvalidPlacement:
             continue
         sims += 1
-        if S.simulate(scene, (x, y, r)).success:
-            return (round(x, 3), round(y, 3), round(r, 3)), sims
+        if sim.simulate(task, ball).solved:
+            return action, sims
     return None, sims
 
 
-# -- generate ---------------------------------------------------------------------------
-
-
-def _generate_one(args: tuple[int, int, int]) -> tuple[int, int, list | None, str]:
-    from deepphy.envs.phyre.templates import Skip, build_with_seed
-
-    template, variant, budget = args
-    space = PhyreSpace()
-    grid = [space.to_scene(a) for a in space.all_actions()]
-    notes = []
-    for k in range(MAX_SUB_SEEDS):
-        try:
-            scene = build_with_seed(template, variant, k)
-        except Skip:
-            continue
-        problem = no_action_problem(scene)
-        if problem:
-            notes.append(problem)
-            continue
-        rng = seeded_rng("phyre-generate", template, variant, k)
-        # Grid actions first (in random order), then the continuous lattice.
-        for i in rng.permutation(len(grid)):
-            x, y, r = grid[int(i)]
-            if S.placement_problem(scene, x, y, r) is None and S.simulate(scene, (x, y, r)).success:
-                return template, variant, [k, [x, y, r]], ""
-        sol, _ = continuous_search(scene, (template, variant, k), limit=budget)
-        if sol is not None:
-            return template, variant, [k, list(sol)], ""
-        notes.append("no solution found")
-    return template, variant, None, "; ".join(sorted(set(notes)))
-
-
-def generate(templates_: list[int], jobs: int, budget: int) -> None:
-    from deepphy.envs.phyre.templates import VARIANTS, VARIANTS_FILE
-
-    data = json.loads(VARIANTS_FILE.read_text()) if VARIANTS_FILE.exists() else {}
-    data.setdefault("about", "accepted sub-seed and one verified solving placement [x, y, r] (px, y up) per "
-                             "variant; written by `python -m deepphy.envs.phyre.solve generate`")
-    store = data.setdefault("templates", {})
-    t0 = time.time()
-    with ProcessPoolExecutor(jobs) as pool:
-        for t in templates_:
-            entries: list = [None] * VARIANTS
-            for _, v, entry, note in pool.map(_generate_one, [(t, v, budget) for v in range(VARIANTS)]):
-                entries[v] = entry
-                if entry is None:
-                    print(f"template {t:02d} variant {v:02d}: FAILED ({note})", file=sys.stderr)
-            store[str(t)] = entries
-            seeds = [e[0] for e in entries if e is not None]
-            print(f"template {t:02d}: {len(seeds)}/{VARIANTS} verified, mean sub-seed {np.mean(seeds):.1f}, "
-                  f"{time.time() - t0:.0f} s", flush=True)
-            data["templates"] = {k: store[k] for k in sorted(store, key=int)}
-            VARIANTS_FILE.write_text(json.dumps(data, separators=(",", ":")).replace("],[", "],\n[") + "\n")
-    print(f"wrote {VARIANTS_FILE} in {time.time() - t0:.0f} s")
-
-
-# -- report -----------------------------------------------------------------------------
-
-
-def _report_one(args: tuple[str, int, int, dict, int]) -> dict:
-    from deepphy.envs.phyre.templates import variant_scene, verified_solution
-
-    task_id, template, variant, space_json, budget = args
-    space = PhyreSpace(**space_json)
-    scene = variant_scene(template, variant)
-    t0 = time.time()
-    solving, valid = grid_results(scene, space)
-    sims = valid
-    cont = None
-    if not solving:
-        cont, n = continuous_search(scene, (template, variant), limit=budget, first=verified_solution(template, variant))
-        sims += n
+def _solve_one(args: tuple[str, str, int]) -> dict:
+    phyre_id, actions, budget = args
+    task = data.load_task(phyre_id)
+    space = SPACES[actions]
+    t0 = time.perf_counter()
+    statuses = grid_statuses(task, space)
+    solving = [space.format(a) for a, s in zip(space.all_actions(), statuses) if s == 1]
+    found, sims = (None, 0)
+    if not solving and budget:
+        found, sims = continuous_search(task, budget)
     return {
-        "task": task_id, "template": template, "variant": variant, "valid_grid_actions": valid,
-        "solving_grid_actions": len(solving), "solving": solving,
-        "continuous_solution": list(cont) if cont else None,
-        "solvable": bool(solving or cont), "simulations": sims, "seconds": round(time.time() - t0, 3),
+        "phyre_id": phyre_id, "template": task.template, "statuses": statuses,
+        "invalid_grid_actions": statuses.count(0), "solving_grid_actions": len(solving), "solving": solving,
+        "continuous_solution": found, "continuous_simulations": sims,
+        "seconds": round(time.perf_counter() - t0, 3),
     }
 
 
-def report(out: Path, jobs: int, splits: str, fold: int, budget: int, limit: int | None) -> dict:
-    from deepphy.envs.phyre.env import PhyreEnv, PhyreOptions
+def random_agent_success(solving: int, total: int, attempts: int = RANDOM_AGENT_ATTEMPTS) -> tuple[float, float]:
+    """P(solved within `attempts`) for a uniform random grid agent: (with repeats, without)."""
+    with_repeats = 1 - (1 - solving / total) ** attempts
+    without = 1 - comb(total - solving, attempts) / comb(total, attempts) if attempts <= total else float(solving > 0)
+    return with_repeats, without
 
-    options = PhyreOptions(splits=splits, fold=fold)
-    space = PhyreEnv(options).space
-    tasks = PhyreEnv.tasks(options)[:limit]
-    seen: dict[tuple[int, int], dict] = {}
-    work = []
-    for t in tasks:
-        key = (t.params["template"], t.params["variant"])
-        if key not in seen:
-            seen[key] = {}
-            work.append((t.id, key[0], key[1], space.model_dump(exclude={"kind"}), budget))
-    t0 = time.time()
-    with ProcessPoolExecutor(jobs) as pool:
-        for row in pool.map(_report_one, work, chunksize=4):
-            seen[(row["template"], row["variant"])] = row
-    rows = []
-    for t in tasks:
-        row = dict(seen[(t.params["template"], t.params["variant"])])
-        row["task"], row["group"] = t.id, t.group
-        rows.append(row)
-    n = len(rows)
+
+def _summary(rows: list[dict], n_actions: int) -> dict:
     counts = np.array([r["solving_grid_actions"] for r in rows])
-    total_grid = space.num_cells * space.radius_levels
-    summary = {
-        "tasks": n,
-        "grid": f"{space.grid}x{space.grid} cells x {space.radius_levels} radii = {total_grid} actions",
+    invalid = np.array([r["invalid_grid_actions"] for r in rows])
+    agent = np.array([random_agent_success(int(c), n_actions) for c in counts]) if len(rows) else np.zeros((0, 2))
+    return {
+        "tasks": len(rows),
         "solvable_on_grid": int((counts > 0).sum()),
-        "fraction_solvable_on_grid": round(float((counts > 0).mean()), 4) if n else 0.0,
-        "mean_solving_grid_actions": round(float(counts.mean()), 3) if n else 0.0,
-        "mean_solving_grid_actions_when_solvable": round(float(counts[counts > 0].mean()), 3) if (counts > 0).any() else 0.0,
-        "fraction_of_grid_actions_solving": round(float(counts.sum() / (n * total_grid)), 4) if n else 0.0,
-        "solvable_in_continuous_space": int(sum(r["solvable"] for r in rows)),
-        "unsolved": [r["task"] for r in rows if not r["solvable"]],
-        "by_group": {},
-        "by_template": {},
+        "fraction_solvable_on_grid": round(float((counts > 0).mean()), 4) if rows else 0.0,
+        "mean_solving_grid_actions": round(float(counts.mean()), 3) if rows else 0.0,
+        "fraction_of_grid_actions_invalid": round(float(invalid.sum() / (len(rows) * n_actions)), 4) if rows else 0.0,
+        "random_agent_success_at_10": round(float(agent[:, 0].mean()), 4) if rows else 0.0,
+        "random_agent_success_at_10_no_repeats": round(float(agent[:, 1].mean()), 4) if rows else 0.0,
+        "solvable_with_continuous_search": int(sum(r["solving_grid_actions"] > 0 or r["continuous_solution"] is not None
+                                                   for r in rows)),
+    }
+
+
+def report(out: Path, options: PhyreOptions, jobs: int, budget: int, limit: int | None) -> dict:
+    space = SPACES[options.actions]
+    if not isinstance(space, PhyreSpace):
+        raise SystemExit("solve: --actions must be a grid (grid5 or grid8)")
+    tasks = PhyreEnv.tasks(options)[:limit]
+    distinct = sorted({t.params["phyre_id"] for t in tasks})
+    t0 = time.time()
+    work = [(pid, options.actions, budget) for pid in distinct]
+    if jobs > 1:
+        with ProcessPoolExecutor(jobs) as pool:
+            results = list(pool.map(_solve_one, work, chunksize=4))
+    else:
+        results = [_solve_one(w) for w in work]
+    by_id = {r["phyre_id"]: r for r in results}
+    rows = [{"task": t.id, "group": t.group, **by_id[t.params["phyre_id"]]} for t in tasks]
+    n_actions = len(space.all_actions())
+    summary = {
+        "setup": options.setup, "fold": options.fold, "split": options.split,
+        "grid": f"{space.grid}x{space.grid} cells x {space.radius_levels} radii = {n_actions} actions",
+        **_summary(rows, n_actions),
+        "by_setup": {},
         "seconds": round(time.time() - t0, 1),
     }
-    for g in sorted({r["group"] for r in rows}):
-        c = np.array([r["solving_grid_actions"] for r in rows if r["group"] == g])
-        summary["by_group"][g] = {"tasks": len(c), "fraction_solvable_on_grid": round(float((c > 0).mean()), 4),
-                                  "mean_solving_grid_actions": round(float(c.mean()), 3)}
-    for t in sorted({r["template"] for r in rows}):
-        c = np.array([r["solving_grid_actions"] for r in rows if r["template"] == t])
-        summary["by_template"][f"{t:02d}"] = {"tasks": len(c), "fraction_solvable_on_grid": round(float((c > 0).mean()), 3),
-                                              "mean_solving_grid_actions": round(float(c.mean()), 2)}
-    result = {"summary": summary, "tasks": rows}
+    for group in sorted({r["group"] for r in rows}):
+        in_group = [r for r in rows if r["group"] == group]
+        per_template = {tpl: _summary([r for r in in_group if r["template"] == tpl], n_actions)
+                        for tpl in sorted({r["template"] for r in in_group})}
+        summary["by_setup"][group] = {**_summary(in_group, n_actions), "by_template": per_template}
+    result = {"summary": summary, "actions": [space.format(a) for a in space.all_actions()], "tasks": rows}
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1) + "\n")
     return result
@@ -231,37 +145,30 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m deepphy.envs.phyre.solve", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
-    rep = sub.add_parser("report", help="solvability of the evaluation set (grid + continuous search)")
+    rep = sub.add_parser("report", help="solvability of the evaluation set by the grid actions")
     rep.add_argument("--out", default="phyre_solvability.json")
-    rep.add_argument("--splits", default="within,cross")
+    rep.add_argument("--setup", default="both", choices=["within", "cross", "both"])
     rep.add_argument("--fold", type=int, default=0)
+    rep.add_argument("--split", default="test", choices=["train", "dev", "test"])
+    rep.add_argument("--actions", default="grid5", choices=["grid5", "grid8"])
+    rep.add_argument("--continuous", type=int, default=0, metavar="N",
+                     help="random valid continuous actions to try on tasks no grid action solves")
     rep.add_argument("--limit", type=int, default=None, help="only the first N tasks")
-    rep.add_argument("--budget", type=int, default=5000, help="continuous candidates per unsolved task")
     rep.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 2) - 1))
-    gen = sub.add_parser("generate", help="verify variants and write templates/variants.json")
-    gen.add_argument("--templates", default="all", help="comma-separated ids, or all")
-    gen.add_argument("--budget", type=int, default=3000, help="continuous candidates per sub-seed")
-    gen.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 2) - 1))
     args = parser.parse_args(argv)
-    if args.command == "generate":
-        from deepphy.envs.phyre.templates import templates
-
-        ids = sorted(templates()) if args.templates == "all" else [int(t) for t in args.templates.split(",")]
-        generate(ids, args.jobs, args.budget)
-        return 0
-    result = report(Path(args.out), args.jobs, args.splits, args.fold, args.budget, args.limit)
-    s = result["summary"]
-    print(f"{s['tasks']} tasks; solvable on the {s['grid']}: {s['solvable_on_grid']} "
-          f"({100 * s['fraction_solvable_on_grid']:.1f}%); mean solving grid actions per task "
-          f"{s['mean_solving_grid_actions']:.2f}; solvable in the continuous space: "
-          f"{s['solvable_in_continuous_space']}/{s['tasks']}; {s['seconds']} s")
-    for g, v in s["by_group"].items():
-        print(f"  {g}: {v['tasks']} tasks, {100 * v['fraction_solvable_on_grid']:.1f}% solvable on the grid, "
-              f"mean {v['mean_solving_grid_actions']:.2f} solving actions")
-    if s["unsolved"]:
-        print(f"  no solution found for: {', '.join(s['unsolved'][:20])}")
+    options = PhyreOptions(setup=args.setup, fold=args.fold, split=args.split, actions=args.actions)
+    s = report(Path(args.out), options, args.jobs, args.continuous, args.limit)["summary"]
+    print(f"{s['tasks']} tasks ({s['setup']}, fold {s['fold']}, {s['split']}); {s['grid']}; "
+          f"solvable on the grid: {s['solvable_on_grid']} ({100 * s['fraction_solvable_on_grid']:.1f}%); "
+          f"invalid grid actions {100 * s['fraction_of_grid_actions_invalid']:.1f}%; random agent within "
+          f"{RANDOM_AGENT_ATTEMPTS} attempts {100 * s['random_agent_success_at_10']:.1f}%; {s['seconds']} s")
+    if args.continuous:
+        print(f"  solvable with the continuous search: {s['solvable_with_continuous_search']}/{s['tasks']}")
+    for group, g in s["by_setup"].items():
+        templates = ", ".join(f"{tpl} {v['solvable_on_grid']}/{v['tasks']}" for tpl, v in g["by_template"].items())
+        print(f"  {group}: {g['solvable_on_grid']}/{g['tasks']} solvable on the grid; per template: {templates}")
     print(f"wrote {args.out}")
-    return 0 if not s["unsolved"] else 1
+    return 0
 
 
 if __name__ == "__main__":

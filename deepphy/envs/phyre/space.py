@@ -1,22 +1,66 @@
-"""The PHYRE action space: `Cell: N, Radius: R`. Light: no pymunk, no OpenCV.
+"""PHYRE action spaces and PHYRE's own ball action mapper. Light: no Box2D, no OpenCV.
 
-The scene is overlaid with a `grid` x `grid` grid of cells numbered 1..grid^2 row by row
-from the TOP-LEFT cell (1 = top-left, `grid` = top-right, grid^2 = bottom-right). The
-red ball's centre goes to the centre of the chosen cell. Radius levels 1..`radius_levels`
-map linearly from `r_min` to `r_max` px (defaults 2 and 32 px in a 256 px scene: 1/128
-and 1/8 of the width, the same linear map as PHYRE's continuous radius in [0, 1]).
+PHYRE's action is (x, y, r) in [0, 1]^3 (`phyre.action_mappers.SingleBallActionMapper`):
+the ball's centre at x * 255, y * 255 px (y UP, 0 = bottom), radius r * 30 + 2 px; the ball
+must lie inside the scene (checked before rounding); then x, y are truncated to integers
+and the radius rounded with Python's round. `ball_from_action` reproduces it.
+
+Spaces (the model's syntax):
+- `PhyreSpace`, `Cell: N, Radius: R`: a grid x grid overlay numbered 1..grid^2 row by row
+  from the TOP-LEFT cell; the ball's centre at the cell's centre; radius levels linear from
+  `r_min` to `r_max` px. A grid action is PHYRE's (x / 255, y / 255, (r - 2) / 30) for the
+  cell centre (x, y) in px (y up) and the level's radius r. The paper's grid: 5 x 5 cells,
+  5 levels 2..32 px; the reference code's: 8 x 8 cells, 8 levels 3.875..32 px (phyre
+  r = 0.0625 .. 1).
+- `PhyreContinuousSpace`, `X: 0.31, Y: 0.72, R: 0.4`: PHYRE's action itself.
 """
 
 from __future__ import annotations
 
 import re
-from typing import Literal, Sequence
+from typing import Literal, NamedTuple, Sequence
 
 import numpy as np
+from pydantic import Field
 
 from deepphy.envs.base import Action, ActionSpace, InvalidAction
 
-SCENE = 256.0
+SCENE = 256  # px, width and height
+MIN_RADIUS = 2  # px at r = 0
+MAX_RADIUS = SCENE // 8  # px at r = 1
+_POSITION_SCALE = SCENE - 1  # PHYRE scales x, y by 255, not 256
+
+
+class InvalidPlacement(ValueError):
+    """The ball cannot be placed. The message says why (it is shown to the agent)."""
+
+
+class Ball(NamedTuple):
+    """The placed ball as PHYRE simulates it: integer px, y up."""
+
+    x: int
+    y: int
+    r: int
+
+
+def ball_from_action(ax: float, ay: float, ar: float) -> Ball:
+    """PHYRE's SingleBallActionMapper: (x, y, r) in [0, 1]^3 -> the ball in px."""
+    if not all(0 <= v <= 1 for v in (ax, ay, ar)):
+        raise InvalidPlacement(f"x, y and r must lie in [0, 1], got ({ax}, {ay}, {ar})")
+    x, y = ax * _POSITION_SCALE, ay * _POSITION_SCALE
+    r = ar * (MAX_RADIUS - MIN_RADIUS) + MIN_RADIUS
+    if not (r <= x <= SCENE - r and r <= y <= SCENE - r):
+        raise InvalidPlacement(f"the ball (centre x={x:.1f}, y={y:.1f} px from the bottom-left, radius "
+                               f"{r:.1f} px) does not lie inside the scene")
+    return Ball(int(x), int(y), round(r))
+
+
+def phyre_r(radius_px: float) -> float:
+    """PHYRE's r in [0, 1] for a radius in px."""
+    return (radius_px - MIN_RADIUS) / (MAX_RADIUS - MIN_RADIUS)
+
+
+# -- the grid ---------------------------------------------------------------------------------
 
 
 class PhyreAction(Action):
@@ -34,8 +78,8 @@ class PhyreSpace(ActionSpace):
     kind: Literal["phyre_grid"] = "phyre_grid"
     grid: int = 5
     radius_levels: int = 5
-    r_min: float = 2.0
-    r_max: float = 32.0
+    r_min: float = 2.0  # px, level 1
+    r_max: float = 32.0  # px, the last level
 
     @property
     def num_cells(self) -> int:
@@ -72,17 +116,72 @@ class PhyreSpace(ActionSpace):
         assert isinstance(action, PhyreAction)
         return f"Cell: {action.cell}, Radius: {action.radius}"
 
-    # -- geometry -------------------------------------------------------------------
+    # -- geometry ---------------------------------------------------------------------------
 
-    def to_scene(self, action: PhyreAction) -> tuple[float, float, float]:
-        """(x, y, r) in scene px, y up."""
-        row, col = divmod(action.cell - 1, self.grid)
-        size = SCENE / self.grid
-        x = (col + 0.5) * size
-        y = SCENE - (row + 0.5) * size
-        return x, y, self.radius_px(action.radius)
+    def cell_centre(self, cell: int) -> tuple[float, float]:
+        """(x, y) px of a cell's centre, y up."""
+        row, col = divmod(cell - 1, self.grid)
+        # this exact float expression: the triple's x * 255 is truncated, so ulps matter
+        return (col + 0.5) * SCENE / self.grid, SCENE - (row + 0.5) * SCENE / self.grid
 
     def radius_px(self, level: int) -> float:
+        """The level's nominal radius (linear from r_min to r_max)."""
         if self.radius_levels == 1:
             return self.r_max
         return self.r_min + (self.r_max - self.r_min) * (level - 1) / (self.radius_levels - 1)
+
+    def simulated_radius(self, level: int) -> int:
+        """The radius PHYRE simulates for the level (its action mapper rounds to whole px)."""
+        return round(phyre_r(self.radius_px(level)) * (MAX_RADIUS - MIN_RADIUS) + MIN_RADIUS)
+
+    def to_phyre(self, action: Action) -> tuple[float, float, float]:
+        """PHYRE's action (x, y, r) in [0, 1]^3."""
+        assert isinstance(action, PhyreAction)
+        x, y = self.cell_centre(action.cell)
+        return x / _POSITION_SCALE, y / _POSITION_SCALE, phyre_r(self.radius_px(action.radius))
+
+
+# -- continuous -------------------------------------------------------------------------------
+
+
+class PhyreContinuousAction(Action):
+    x: float = Field(ge=0.0, le=1.0)
+    y: float = Field(ge=0.0, le=1.0)
+    r: float = Field(ge=0.0, le=1.0)
+
+
+_NUMBER = r"\**+\s*+[:=]\s*+\**+\s*+(-?[0-9]++(?:\.[0-9]*+)?+(?:e-?[0-9]++)?+|-?\.[0-9]++)"
+_KEYS = {k: re.compile(rf"(?<![a-z]){k}{_NUMBER}", re.I | re.ASCII) for k in ("x", "y", "r")}
+
+
+class PhyreContinuousSpace(ActionSpace):
+    """PHYRE's own action: `X: <0..1>, Y: <0..1>, R: <0..1>` (y from the BOTTOM edge)."""
+
+    kind: Literal["phyre_continuous"] = "phyre_continuous"
+    decimals: int = 3  # MOCK's samples are rounded to this many decimals
+
+    def parse(self, text: str) -> PhyreContinuousAction:
+        values = {}
+        for key, pattern in _KEYS.items():
+            found = pattern.findall(text)
+            if not found:
+                raise InvalidAction("expected 'X: <0..1>, Y: <0..1>, R: <0..1>'")
+            values[key] = float(found[-1])  # the last stated value wins
+            if not 0.0 <= values[key] <= 1.0:
+                raise InvalidAction(f"{key.upper()} {found[-1]} is outside 0..1")
+        return PhyreContinuousAction(**values)
+
+    def sample(self, rng: np.random.Generator, exclude: Sequence[Action] = ()) -> PhyreContinuousAction:
+        while True:
+            x, y, r = (round(float(v), self.decimals) for v in rng.random(3))
+            action = PhyreContinuousAction(x=x, y=y, r=r)
+            if action not in exclude:
+                return action
+
+    def format(self, action: Action) -> str:
+        assert isinstance(action, PhyreContinuousAction)
+        return f"X: {action.x!r}, Y: {action.y!r}, R: {action.r!r}"
+
+    def to_phyre(self, action: Action) -> tuple[float, float, float]:
+        assert isinstance(action, PhyreContinuousAction)
+        return action.x, action.y, action.r
