@@ -12,8 +12,11 @@
 # steps in a Debian bookworm chroot and runs the result (see that file for what it covers).
 FROM python:3.11-slim-bookworm
 
-# Shared libraries the wheels load that the slim base lacks (cluster/check_image_steps.py
-# lists what `ldd` cannot resolve): OpenCV, pygame/SDL and panda3d need these.
+# No graphics or audio libraries: the wheels (opencv-python-headless, pygame, pymunk,
+# Box2D, panda3d, jax) bundle what deepphy loads. What they link to but the slim base
+# lacks (GL/EGL/X11 for panda3d's display modules, glib for pygame's mixer, numba's
+# OpenMP/TBB layers) is never loaded; cluster/check_image_steps.py holds that list and
+# fails on anything else `ldd` cannot resolve.
 # rsync and openssh-client: `ray up` syncs files into the container with rsync, and the
 # head's autoscaler reaches the worker machines over SSH.
 RUN apt-get update \
