@@ -291,13 +291,15 @@ def in_root(root: Path, command: str, *, env: dict[str, str], user: str = "root"
             binds: list[tuple[str, str]] = (), timeout: float = STEP_TIMEOUT_S,
             capture: bool = False) -> subprocess.CompletedProcess:
     """Run `/bin/sh -c command` in the root filesystem as Docker's RUN / `docker run` would:
-    own mount and PID namespaces (every process it leaves behind dies with it), /proc, a
-    read-only /sys, a minimal /dev with a 64 MiB /dev/shm, the host's network."""
+    own mount and PID namespaces (every process it leaves behind dies with it, and all die
+    if this check is killed), /proc, a read-only /sys, a minimal /dev with a 64 MiB
+    /dev/shm, the host's network."""
     uid, gid, home = user_ids(root, user)
     full_env = {"HOME": home, **env}
     bind_args = [arg for src, dst in binds for arg in ("--bind", src, dst)]
     inner = f"cd {shlex.quote(workdir)} && {command}"
-    cmd = ["unshare", "--mount", "--pid", "--fork", "--propagation", "private", "sh", "-c", NAMESPACE_SCRIPT, "sh",
+    cmd = ["unshare", "--mount", "--pid", "--fork", "--kill-child", "--propagation", "private",
+           "sh", "-c", NAMESPACE_SCRIPT, "sh",
            str(root), "64m", *bind_args, f"--userspec={uid}:{gid}", str(root),
            "/usr/bin/env", "-i", *[f"{k}={v}" for k, v in full_env.items()], "/bin/sh", "-c", inner]
     print(f"+ [{user} in {workdir}] {command}", flush=True)

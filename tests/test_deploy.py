@@ -102,8 +102,9 @@ def test_every_copy_source_is_in_the_build_context():
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(3600)
 @pytest.mark.skipif(os.environ.get("DEEPPHY_IMAGE_CHECK") != "1" or os.geteuid() != 0,
-                    reason="opt-in (DEEPPHY_IMAGE_CHECK=1, root, network): builds a Debian root filesystem, ~10 min")
+                    reason="opt-in (DEEPPHY_IMAGE_CHECK=1, root, network): builds a Debian root filesystem, 5-15 min")
 def test_image_steps_run_for_real():
     workdir = tempfile.mkdtemp(prefix="deepphy-image-check-")
     result = subprocess.run([sys.executable, str(CLUSTER / "check_image_steps.py"), "--workdir", workdir],
