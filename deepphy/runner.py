@@ -83,18 +83,23 @@ def quiet_environment() -> None:
 
 
 def ensure_ray(runtime: RuntimeOptions) -> bool:
-    """Connect to Ray; returns True if this call started a local cluster (to shut down later)."""
+    """Connect to Ray; returns True if this call connected (to disconnect or shut down later).
+    An address (HOST:PORT or "auto") joins that cluster; so does RAY_ADDRESS when none is
+    given (`ray job submit` and KubeRay set it for the driver). Otherwise a new local cluster
+    starts, even if `ray start` left an address file on this machine."""
     import ray
 
     if ray.is_initialized():
         return False
     quiet_environment()
-    if runtime.address:
-        ray.init(address=runtime.address, logging_level=logging.WARNING)
+    address = runtime.address or os.environ.get("RAY_ADDRESS")
+    if address:
+        ray.init(address=address, logging_level=logging.WARNING)
         return True
     # A local cluster on loopback keeps Ray's default token auth; its notice is noise here.
     logging.getLogger("ray._private.authentication.authentication_token_setup").setLevel(logging.ERROR)
     ray.init(
+        address="local",
         num_cpus=runtime.num_cpus,
         _node_ip_address=LOOPBACK_NODE_IP,
         include_dashboard=False,
