@@ -141,7 +141,8 @@ def evaluate(
         limiter = ensure_limiter(model_cfg) if model_cfg is not None else None
         model_worker = make_model_worker(config.model, name=f"{prefix}/model", **(client_options or {}))
         total = len(tasks) * config.runs
-        metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics")
+        metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics", run={
+            "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})
         actors = [*env_workers, model_worker, metrics, *([limiter] if limiter is not None else [])]
         ray.get(metrics.add.remote(existing, resumed=True), timeout=RAY_TIMEOUT_S)
         scheduler = Scheduler(config, runtime, env_cls, tasks, store, env_workers, model_worker, metrics, k_max)

@@ -13,9 +13,10 @@ from deepphy.runs.records import AttemptRecord
 
 
 class MetricsImpl:
-    def __init__(self, episodes_total: int, max_attempts: int) -> None:
+    def __init__(self, episodes_total: int, max_attempts: int, run: dict[str, Any] | None = None) -> None:
         self.episodes_total = episodes_total
         self.max_attempts = max_attempts
+        self.run = run or {}  # where the run writes and what it evaluates: dashboards find it here
         # Snapshots are polled twice a second: keep each episode's figures up to date as its
         # records arrive instead of re-deriving every episode from every record per poll.
         self.records: dict[tuple[str, int], list[AttemptRecord]] = defaultdict(list)
@@ -48,8 +49,10 @@ class MetricsImpl:
             "solved": sum(e.solved for e in eps),
             "success_rate": sum(e.solved for e in finished) / len(finished) if finished else 0.0,
             "elapsed_s": elapsed,
+            **self.run,
         }
 
 
-def make_metrics_actor(episodes_total: int, max_attempts: int, *, name: str | None = None):
-    return ray.remote(num_cpus=0)(MetricsImpl).options(name=name).remote(episodes_total, max_attempts)
+def make_metrics_actor(episodes_total: int, max_attempts: int, *, name: str | None = None,
+                       run: dict[str, Any] | None = None):
+    return ray.remote(num_cpus=0)(MetricsImpl).options(name=name).remote(episodes_total, max_attempts, run)
