@@ -34,8 +34,8 @@ def _mean(report: Report, section: str | None = None) -> tuple[dict[str, Any], d
     return sec["mean"], sec["std"]
 
 
-def _options_key(report: Report, drop: str | None = None) -> str:
-    return json.dumps({k: v for k, v in sorted(report["env_options"].items()) if k != drop})
+def _options_key(report: Report, *drop: str) -> str:
+    return json.dumps({k: v for k, v in sorted(report["env_options"].items()) if k not in drop})
 
 
 # -- cumulative success (in-advance environments, K > 1) --------------------------------
@@ -77,12 +77,20 @@ def draw_cumulative_bars(ax: Axes, reports: Sequence[Report], checkpoints: Seque
 # -- VLA vs WM ----------------------------------------------------------------------------
 
 
+def _setting_key(r: Report, *drop: str) -> tuple:
+    """What must agree for two reports to be one comparison (everything but `drop`)."""
+    facts = {"env": r["env"], "model": r["model"], "format": r["format"], "runs": r["runs"], "seed": r["seed"],
+             "k": r["max_attempts"], "tasks": r["overall"]["tasks"]}
+    return tuple(v for k, v in facts.items() if k not in drop) + (_options_key(r, *drop),)
+
+
 def vla_wm_pairs(reports: Sequence[Report]) -> list[tuple[Report, Report]]:
-    """(VLA report, WM report) of each env/model/options evaluated in both formats."""
-    by_key: dict[tuple, dict[str, Report]] = defaultdict(dict)
+    """(VLA report, WM report) of each setting evaluated in both formats (several of one
+    setting pair up in the order given)."""
+    by_key: dict[tuple, dict[str, list[Report]]] = defaultdict(lambda: defaultdict(list))
     for r in reports:
-        by_key[(r["env"], r["model"], _options_key(r))][r["format"]] = r
-    return [(f["vla"], f["wm"]) for f in by_key.values() if all(x in f for x in FORMATS)]
+        by_key[_setting_key(r, "format")][r["format"]].append(r)
+    return [pair for f in by_key.values() for pair in zip(*(f[x] for x in FORMATS))]
 
 
 def draw_vla_wm_scatter(ax: Axes, reports: Sequence[Report], k: int | None = None) -> dict[str, Any]:
@@ -126,14 +134,12 @@ def _option_default(env: str, option: str) -> Any:
 def ablation_pairs(reports: Sequence[Report], option: str = ABLATION_OPTION) -> list[tuple[Report, Report]]:
     """(with, without) reports of one env/model/format/other options, where the
     environment's boolean `option` is true in one and false in the other."""
-    by_key: dict[tuple, dict[bool, Report]] = defaultdict(dict)
+    by_key: dict[tuple, dict[bool, list[Report]]] = defaultdict(lambda: defaultdict(list))
     for r in reports:
         default = _option_default(r["env"], option)
-        if not isinstance(default, bool):
-            continue
-        value = bool(r["env_options"].get(option, default))
-        by_key[(r["env"], r["model"], r["format"], _options_key(r, drop=option))][value] = r
-    return [(v[True], v[False]) for v in by_key.values() if True in v and False in v]
+        if isinstance(default, bool):
+            by_key[_setting_key(r, option)][bool(r["env_options"].get(option, default))].append(r)
+    return [pair for v in by_key.values() for pair in zip(v[True], v[False])]
 
 
 def group_order(report: Report) -> list[str]:
@@ -160,12 +166,15 @@ def draw_ablation_dumbbell(ax: Axes, reports: Sequence[Report], option: str = AB
                                   "group": g, "with": a, "without": b})
     for y, row in enumerate(drawn["rows"]):
         ax.plot([100 * row["without"], 100 * row["with"]], [y, y], color="#9ca3af", zorder=1)
-        ax.scatter(100 * row["with"], y, color="#2563eb", zorder=2, label=f"{option}=true" if y == 0 else None)
-        ax.scatter(100 * row["without"], y, color="#dc2626", zorder=2, label=f"{option}=false" if y == 0 else None)
+        # a ring and a dot: both stay visible when the two values are equal
+        ax.scatter(100 * row["with"], y, s=110, facecolors="none", edgecolors="#2563eb", linewidths=2, zorder=2,
+                   label=f"{option}=true" if y == 0 else None)
+        ax.scatter(100 * row["without"], y, s=30, color="#dc2626", zorder=3, label=f"{option}=false" if y == 0 else None)
     ax.set_yticks(range(len(drawn["rows"])), [r["label"] for r in drawn["rows"]])
     ax.invert_yaxis()
+    ax.margins(y=0.15)
     ax.set_xlabel("tasks solved (%)")
-    ax.set_xlim(0, 100)
+    ax.set_xlim(-2, 102)
     ax.legend(fontsize=8)
     return drawn
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import random
+import shutil
 from pathlib import Path
 
 import cv2
@@ -21,16 +22,21 @@ import numpy as np
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.runner import evaluate, resolve
 from deepphy.runs.records import AttemptRecord, KeyFrame, ModelStats, StepRecord, Timing
-from deepphy.runs.store import RunStore
+from deepphy.runs.store import ATTEMPTS, RunStore
 
 IPHYRE_TASKS = ["support", "hinder", "direction", "hole", "spring_flick", "multi_ball_lever"]
 
 
-def mock_run(out: Path, fmt: str = "vla", runs: int = 2, tasks: list[str] = IPHYRE_TASKS) -> Path:
-    """A real MOCK evaluation of a few I-PHYRE games (needs a Ray runtime)."""
-    config = RunConfig(env="iphyre", model="mock", format=fmt, runs=runs, seed=3, tasks=tasks)
-    outcome = evaluate(config, out, RuntimeOptions(progress=False, env_workers=2))
-    assert outcome.complete
+def mock_run(tmp_path_factory, fmt: str = "vla") -> Path:
+    """A real MOCK evaluation of a few I-PHYRE games (needs a Ray runtime), made once per
+    test session and shared by the test modules: treat it as read-only."""
+    out = tmp_path_factory.getbasetemp() / f"shared-mock-iphyre-{fmt}"
+    if not out.exists():  # renamed into place only once complete
+        partial = tmp_path_factory.mktemp(f"mock-iphyre-{fmt}")
+        config = RunConfig(env="iphyre", model="mock", format=fmt, runs=2, seed=3, tasks=IPHYRE_TASKS)
+        outcome = evaluate(config, partial, RuntimeOptions(progress=False, env_workers=2))
+        assert outcome.complete
+        partial.rename(out)
     return out
 
 
@@ -93,3 +99,17 @@ def synthetic_run(out: Path, env: str = "kinetix", *, runs: int = 2, seed: int =
                     if success:
                         break
     return out
+
+
+def copy_run(src, dest, lines: int, torn: int = 0):
+    """A copy of a run directory whose log holds only its first `lines` records (and
+    `torn` bytes of the next, as a writer in the middle of a line leaves it)."""
+    shutil.copytree(src, dest, ignore=shutil.ignore_patterns(ATTEMPTS, ".lock"))
+    log = (src / ATTEMPTS).read_bytes().split(b"\n")
+    (dest / ATTEMPTS).write_bytes(b"".join(line + b"\n" for line in log[:lines]) + log[lines][:torn])
+    return log[:-1]
+
+
+def append(dest, lines: list[bytes]):
+    with open(dest / ATTEMPTS, "ab") as f:
+        f.write(b"".join(line + b"\n" for line in lines))

@@ -17,7 +17,7 @@ from deepphy.runs.store import read_records
 def runs(ray_cluster, tmp_path_factory):
     """A real MOCK I-PHYRE run (one decision per attempt) and a multi-decision WM run."""
     base = tmp_path_factory.mktemp("export-runs")
-    return [mock_run(base / "iphyre"), synthetic_run(base / "kinetix", fmt="wm", limit=5, max_steps=5)]
+    return [mock_run(tmp_path_factory), synthetic_run(base / "kinetix", fmt="wm", limit=5, max_steps=5)]
 
 
 @pytest.fixture(scope="module")

@@ -244,8 +244,14 @@ function starChart(series) {
   const Y = (y) => T + (1 - y / ymax) * (H - T - B);
   const bw = Math.min(70, (W - L - R) / Math.max(1, shown.length) - 16);
   const svg = el("svg", { width: W, height: H, viewBox: `0 0 ${W} ${H}`, "data-kind": "stars" });
+  const step = Math.max(1, Math.ceil(ymax / 5));
+  for (let y = 0; y <= ymax; y += step) {
+    svg.append(el("line", { class: "gridline", x1: L, x2: W - R, y1: Y(y), y2: Y(y) }),
+      el("text", { x: L - 6, y: Y(y) + 4, "text-anchor": "end", text: y }));
+  }
   svg.append(el("line", { class: "axis", x1: L, x2: W - R, y1: Y(0), y2: Y(0) }),
-    el("text", { x: 12, y: T + 8, text: "levels" }));
+    el("line", { class: "axis", x1: L, x2: L, y1: T, y2: Y(0) }),
+    el("text", { x: 4, y: T + 4, text: "levels" }));
   shown.forEach((v, i) => {
     const x = L + 12 + i * (bw + 16);
     let base = 0;
