@@ -228,3 +228,36 @@ def test_cli_port_in_use(run_dir, capsys):
         port = s.getsockname()[1]
         assert main(["dashboard", str(run_dir), "--port", str(port)]) == 2
     assert f"cannot listen on 127.0.0.1:{port}" in capsys.readouterr().err
+
+
+def test_live_runs_from_metrics_snapshots(run_dir):
+    """What the Ray loop does with the metrics actors' snapshots (`deepphy watch --json`
+    prints the same objects): a readable run directory becomes a full run; an unreadable
+    one shows the snapshot, and is marked ended once its actor is gone."""
+    config = read_config(run_dir).model_dump(mode="json")
+    snap = {"episodes_done": 3, "episodes_total": 12, "attempts": 9, "attempts_per_s": 2.5, "solved": 2,
+            "invalid_attempts": 1, "model_errors": 0, "retries": 4, "input_tokens": 10, "output_tokens": 2,
+            "cost_usd": 0.5, "elapsed_s": 6.0, "config": config}
+
+    async def scenario():
+        dashboard = Dashboard([])
+        queue = asyncio.Queue()
+        dashboard.clients.add(queue)
+        await dashboard._merge_live({"aa11": {**snap, "run_dir": str(run_dir)},
+                                     "bb22": {**snap, "run_dir": "/elsewhere/run"}})
+        assert [s.path for s in dashboard.sources.values()] == [run_dir.resolve()]
+        source = next(iter(dashboard.sources.values()))
+        assert source.snapshot["attempts"] == 9
+        view = dashboard.views["ray-bb22"]
+        assert view["live_only"] and view["progress"]["status"] == "running"
+        assert view["progress"]["eta_s"] == pytest.approx((12 - 3) / (3 / 6.0))
+        assert view["totals"]["retries"] == 4 and view["label"] == "mock VLA" and view["env"] == "iphyre"
+        await dashboard._merge_live({})
+        assert dashboard.views["ray-bb22"]["progress"]["status"] == "ended" and source.snapshot is None
+        await dashboard._poll(source)  # the directory-backed run is read like any other
+        assert dashboard.views[source.id]["report"] == report_of(run_dir)
+        sent = [queue.get_nowait() for _ in range(queue.qsize())]
+        assert len(sent) == 3 and all(m.startswith(b"event: message\n") for m in sent)
+        dashboard.executor.shutdown()
+
+    asyncio.run(scenario())

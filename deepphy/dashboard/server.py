@@ -24,7 +24,7 @@ from deepphy.dashboard.source import RunSource, is_run_dir
 log = logging.getLogger(__name__)
 
 STATIC = Path(__file__).parent / "static"
-POLL_S = 0.5  # how often each run directory is checked for new records
+POLL_S = 0.25  # how often each run directory is checked for new records (a stat, usually)
 REFRESH_S = 2.0  # a view is re-sent at least this often while its run is live (rate, ETA)
 LIVE_POLL_S = 2.0  # how often the Ray cluster is asked for its live runs
 MAX_CELL_DELTA = 5000  # beyond this many changed cells, pages re-fetch their grid page
@@ -88,8 +88,9 @@ class Dashboard:
         since = now - self._sent_at.get(source.id, 0.0)
         dirty = self._pending[source.id] is None or bool(self._pending[source.id]) or source.id not in self.views
         live = self.views.get(source.id, {}).get("progress", {}).get("status") == "running"
-        # A large run's report takes a while: wait a few times its cost between views.
-        if not (dirty and since >= 3 * self._cost.get(source.id, 0.0)) and not (live and since >= REFRESH_S):
+        # A large run's report takes a while: wait twice its cost between views, so that the
+        # worker thread is never busy more than a third of the time.
+        if not (dirty and since >= 2 * self._cost.get(source.id, 0.0)) and not (live and since >= REFRESH_S):
             return
         t0 = time.monotonic()
         view = await self._call(source.view)

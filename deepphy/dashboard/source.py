@@ -7,6 +7,7 @@ figures. Not thread-safe: the server calls every method from one worker thread.
 
 from __future__ import annotations
 
+import bisect
 import hashlib
 import json
 import os
@@ -104,6 +105,10 @@ class RunSource:
         self.snapshot: dict[str, Any] | None = None  # the live metrics actor's, if one was found
         self._report: tuple[int, dict[str, Any]] | None = None
         self._cells: dict[tuple[str, int], Cell] = {}  # cache; poll() drops what changed
+        # timing facts kept up to date by poll(), for attempts/s and ETA without rescanning
+        self._finished: list[float] = []  # sorted finish times of all attempts
+        self._first_started: float | None = None
+        self._episode_ends: dict[tuple[str, int], float] = {}  # finished episodes -> their last finish time
 
     # -- reading ------------------------------------------------------------------------
 
@@ -118,6 +123,7 @@ class RunSource:
         reset = self.inode is not None and (st.st_ino != self.inode or st.st_size < self.offset)
         if reset:  # a different log (the directory was recreated): start over
             self.records, self.episodes, self.offset, self.errors, self._cells = [], {}, 0, [], {}
+            self._finished, self._first_started, self._episode_ends = [], None, {}
             self.version += 1
         self.inode, self.log_size = st.st_ino, st.st_size
         if st.st_size == self.offset:
@@ -135,11 +141,22 @@ class RunSource:
             self.records.append(record)
             self.episodes.setdefault((record.task, record.run), {})[record.attempt] = record
             changed.add((record.task, record.run))
+            if record.timing.finished:
+                bisect.insort(self._finished, record.timing.finished)
+            if record.timing.started:
+                self._first_started = min(self._first_started or record.timing.started, record.timing.started)
         for key in changed:
             self._cells.pop(key, None)
+            if self._cell(key).state in ("solved", "failed"):
+                self._episode_ends[key] = max(r.timing.finished for r in self.episodes[key].values())
         if changed:
             self.version += 1
         return None if reset else changed
+
+    @property
+    def label(self) -> str:
+        c = self.config
+        return setting({"model": c.model, "format": c.format.value, "env_options": c.env_options})
 
     @property
     def loading(self) -> bool:
@@ -183,22 +200,18 @@ class RunSource:
         writing = writer_holds_lock(self.path)
         if writing is None:  # no /proc/locks: a log that grew in the last half minute is live
             writing = now - (self.path / ATTEMPTS).stat().st_mtime < 30 if self.log_size else False
-        finished = sorted(r.timing.finished for r in self.records if r.timing.finished)
         rate = eta = None
         if writing:
-            recent = [t for t in finished if t >= now - RATE_WINDOW_S]
-            span = min(RATE_WINDOW_S, now - min((r.timing.started for r in self.records), default=now))
-            rate = len(recent) / span if span > 1 else None
-            ends = [max(r.timing.finished for r in eps.values()) for key, eps in self.episodes.items()
-                    if self._cell(key).state in ("solved", "failed")]
-            done_recently = sum(1 for t in ends if t >= now - RATE_WINDOW_S)
-            if done_recently and span > 1:
-                eta = (total - done) / (done_recently / span)
-        elif len(finished) > 1:
-            first = min(r.timing.started for r in self.records if r.timing.started)
-            rate = len(finished) / max(finished[-1] - first, 1e-9)
-        if self.snapshot and writing:  # the live run's own figures: no window to wait for
-            rate = self.snapshot.get("attempts_per_s", rate)
+            cutoff = now - RATE_WINDOW_S
+            span = min(RATE_WINDOW_S, now - (self._first_started or now))
+            if span > 1:
+                rate = (len(self._finished) - bisect.bisect_left(self._finished, cutoff)) / span
+                ended = sum(1 for t in self._episode_ends.values() if t >= cutoff)
+                eta = (total - done) / (ended / span) if ended else None
+            if self.snapshot:  # the live run's own figure
+                rate = self.snapshot.get("attempts_per_s", rate)
+        elif len(self._finished) > 1 and self._first_started:
+            rate = len(self._finished) / max(self._finished[-1] - self._first_started, 1e-9)
         status = "running" if writing else "complete" if done == total else "incomplete"
         return {"status": status, "episodes_done": done, "episodes_total": total, "attempts": attempts,
                 "attempts_per_s": rate, "eta_s": eta, "loading": self.loading,
@@ -269,7 +282,7 @@ class RunSource:
             attempts.append(r.model_dump(mode="json"))
         return {
             "run_id": self.id, "task": task, "run": run, "group": self.tasks[self.task_index[task]].group,
-            "label": setting(self.report()), "env": self.config.env, "k_max": self.k_max,
+            "label": self.label, "env": self.config.env, "k_max": self.k_max,
             "max_steps": self.max_steps, "cell": self._cell((task, run)).as_json(),
             "attempts": attempts, "prompts": prompts,
         }
