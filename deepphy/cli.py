@@ -70,7 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     dash = sub.add_parser("dashboard", help="live web dashboard of run directories (and of the runs on a Ray cluster)")
     dash.add_argument("run_dirs", nargs="*", metavar="RUN_DIR",
-                      help="run directories, or directories holding run directories")
+                      help="run directories, or directories of run directories (new ones join the page as they "
+                           "appear; so does a run started later into a directory given here)")
     dash.add_argument("--address", help="also show every run live on this Ray cluster")
     dash.add_argument("--host", default="127.0.0.1", help="interface to listen on; default 127.0.0.1 (this machine only)")
     dash.add_argument("--port", type=int, default=8700, help="port; default 8700, 0 picks a free one")
@@ -244,17 +245,31 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     import asyncio
 
     from deepphy.dashboard.server import Dashboard, serve
-    from deepphy.dashboard.source import RunSource, find_run_dirs
+    from deepphy.dashboard.source import RunSource, is_run_dir, runs_in
 
     if not args.run_dirs and not args.address:
         raise UserError("give run directories and/or --address of a Ray cluster")
     if not 0 <= args.port <= 65535:
         raise UserError(f"--port must be 0..65535, got {args.port}")
-    paths = [p.resolve() for arg in args.run_dirs for p in find_run_dirs(arg)]
-    sources = [RunSource(p) for p in dict.fromkeys(paths)]
-    announce = lambda url: print(f"dashboard: {url}  (Ctrl-C to stop)", flush=True)  # noqa: E731
+    paths, roots = [], []
+    for arg in map(Path, args.run_dirs):
+        if arg.exists() and not arg.is_dir():
+            raise UserError(f"{arg} is not a directory")
+        if not is_run_dir(arg):  # a directory of runs, or one a run is about to be written to
+            roots.append(arg)
+            if not runs_in(arg):
+                print(f"deepphy: {arg} holds no run yet; the page shows it once one appears", file=sys.stderr)
+        paths += [p.resolve() for p in runs_in(arg)]
+    sources = [RunSource(p) for p in dict.fromkeys(paths)]  # a bad run directory: a clear error now
+
+    def announce(url: str) -> None:
+        print(f"dashboard: {url}  (Ctrl-C to stop)", flush=True)
+        if args.host not in ("127.0.0.1", "localhost", "::1"):
+            print(f"note: listening on {args.host}: whoever reaches this port can read these runs' prompts, "
+                  "replies and frames", file=sys.stderr)
+
     try:
-        asyncio.run(serve(Dashboard(sources, address=args.address), args.host, args.port, announce))
+        asyncio.run(serve(Dashboard(sources, roots, address=args.address), args.host, args.port, announce))
     except OSError as e:
         raise UserError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
     except KeyboardInterrupt:

@@ -43,6 +43,9 @@ def test_tailing_consumes_whole_lines_only(run_dir, tmp_path):
     changed = source.poll()
     assert len(source.records) == len(log) and changed
     assert source.report() == report_of(run_dir)  # the same report as `deepphy report --json`
+    append(copy, [b'{"env": "iphyre", "task": "support"}'])  # not a record: reported, skipped
+    assert source.poll() == set() and len(source.records) == len(log)
+    assert len(source.errors) == 1 and "is not a valid attempt record" in source.view()["errors"][0]
 
 
 def test_view_numbers_are_the_report(run_dir):
@@ -215,10 +218,38 @@ async def _next_event(response):
 def test_cli_errors(tmp_path, capsys):
     assert main(["dashboard"]) == 2
     assert "give run directories" in capsys.readouterr().err
-    assert main(["dashboard", str(tmp_path / "nosuch")]) == 2
-    assert "does not exist" in capsys.readouterr().err
-    assert main(["dashboard", str(tmp_path)]) == 2  # an empty directory: no run in it
-    assert "not a run directory" in capsys.readouterr().err
+    (tmp_path / "notes.txt").write_text("")
+    assert main(["dashboard", str(tmp_path / "notes.txt")]) == 2
+    assert "is not a directory" in capsys.readouterr().err
+    bad = tmp_path / "runs" / "bad"
+    bad.mkdir(parents=True)
+    (bad / "config.json").write_text('{"env": "nosuch"}')
+    assert main(["dashboard", str(tmp_path / "runs")]) == 2
+    assert "is not a valid run config" in capsys.readouterr().err
+
+
+def test_runs_that_appear_later_join(run_dir, tmp_path):
+    """A directory given before any run is in it shows a placeholder, then the run."""
+    root = tmp_path / "runs"
+
+    async def scenario():
+        dashboard = Dashboard([], roots=[root])
+        queue = asyncio.Queue()
+        dashboard.clients.add(queue)
+        await dashboard._scan_roots()
+        (waiting,) = dashboard.views.values()
+        assert waiting["waiting"] and waiting["progress"]["status"] == "waiting"
+        copy_run(run_dir, root / "later", lines=12)
+        await dashboard._scan_roots()
+        (source,) = dashboard.sources.values()
+        assert source.path == (root / "later").resolve() and not dashboard.views
+        await dashboard._poll(source)
+        assert dashboard.views[source.id]["progress"]["attempts"] == 12
+        sent = [queue.get_nowait() for _ in range(queue.qsize())]
+        assert [m.split(b"\n", 1)[0] for m in sent] == [b"event: message", b"event: state", b"event: message"]
+        dashboard.executor.shutdown()
+
+    asyncio.run(scenario())
 
 
 def test_cli_port_in_use(run_dir, capsys):

@@ -19,7 +19,7 @@ from typing import Any
 
 from aiohttp import web
 
-from deepphy.dashboard.source import RunSource, is_run_dir
+from deepphy.dashboard.source import RunSource, is_run_dir, run_id, runs_in
 
 log = logging.getLogger(__name__)
 
@@ -27,14 +27,20 @@ STATIC = Path(__file__).parent / "static"
 POLL_S = 0.25  # how often each run directory is checked for new records (a stat, usually)
 REFRESH_S = 2.0  # a view is re-sent at least this often while its run is live (rate, ETA)
 LIVE_POLL_S = 2.0  # how often the Ray cluster is asked for its live runs
+SCAN_S = 1.0  # how often watched directories are looked through for new run directories
 MAX_CELL_DELTA = 5000  # beyond this many changed cells, pages re-fetch their grid page
 HEARTBEAT_S = 15.0
 CLIENT_BACKLOG = 200  # messages queued for a page that does not read; then it is dropped
 
 
 class Dashboard:
-    def __init__(self, sources: list[RunSource], address: str | None = None, poll_s: float = POLL_S) -> None:
+    def __init__(self, sources: list[RunSource], roots: list[Path] = (), address: str | None = None,
+                 poll_s: float = POLL_S) -> None:
         self.sources: dict[str, RunSource] = {s.id: s for s in sources}
+        # Directories that are not (yet) run directories: a run started into one, or a run
+        # directory created inside one, joins the page when it appears.
+        self.roots = [Path(r).resolve() for r in roots]
+        self._unreadable: set[Path] = set()
         self.address = address
         self.poll_s = poll_s
         self.views: dict[str, dict[str, Any]] = {}  # latest view per run, in the order runs were added
@@ -68,8 +74,12 @@ class Dashboard:
     # -- updates ------------------------------------------------------------------------
 
     async def _poll_loop(self) -> None:
+        next_scan = 0.0
         while True:
             started = time.monotonic()
+            if self.roots and started >= next_scan:
+                await self._scan_roots()
+                next_scan = started + SCAN_S
             for source in list(self.sources.values()):
                 try:
                     await self._poll(source)
@@ -102,6 +112,34 @@ class Dashboard:
         self._sent_at[source.id] = time.monotonic()
         self.views[source.id] = view
         self._broadcast({"type": "run", "run": view, "cells": cells, "grid_reset": reset})
+
+    async def _scan_roots(self) -> None:
+        known = {s.path for s in self.sources.values()}
+        removed = False
+        for root in self.roots:
+            found = await self._call(runs_in, root)
+            for path in found:
+                if path in known or path in self._unreadable:
+                    continue
+                try:
+                    source = await self._call(RunSource, path)
+                except Exception as e:  # noqa: BLE001 - say so once, keep the others going
+                    log.warning("cannot show %s: %s", path, e)
+                    self._unreadable.add(path)
+                    continue
+                self.sources[source.id] = source  # its first view goes out with the next poll
+                known.add(path)
+            waiting = f"wait-{run_id(root)}"
+            if found and waiting in self.views:
+                del self.views[waiting]
+                removed = True
+            elif not found and waiting not in self.views:
+                self.views[waiting] = waiting_view(waiting, root)
+                self._broadcast({"type": "run", "run": self.views[waiting], "cells": [], "grid_reset": False})
+        if removed:  # pages drop the placeholder by taking the whole state again
+            data = sse("state", self.state())
+            for q in list(self.clients):
+                q.put_nowait(data)
 
     async def _live_loop(self) -> None:
         from deepphy.dashboard import live
@@ -246,6 +284,20 @@ def live_only_view(ray_id: str, snap: dict[str, Any]) -> dict[str, Any]:
                                                "input_tokens", "output_tokens", "cost_usd")},
         "curve": None, "stars": None, "table": None, "report": None, "errors": [],
         "note": "the run directory is not readable from here: the live snapshot of its metrics actor",
+    }
+
+
+def waiting_view(view_id: str, root: Path) -> dict[str, Any]:
+    """A directory given on the command line that holds no run yet."""
+    return {
+        "id": view_id, "path": str(root), "name": root.name, "label": "no run yet", "env": "waiting",
+        "model": "", "format": "", "waiting": True, "live": False,
+        "progress": {"status": "waiting", "episodes_done": 0, "episodes_total": 0, "attempts": 0,
+                     "attempts_per_s": None, "eta_s": None, "loading": False},
+        "totals": dict.fromkeys(("solved", "attempts", "invalid_attempts", "model_errors", "retries",
+                                 "input_tokens", "output_tokens", "cost_usd"), 0),
+        "curve": None, "stars": None, "table": None, "report": None, "errors": [],
+        "note": "waiting for a run directory here (a `deepphy run --out` into it, or one created inside it)",
     }
 
 

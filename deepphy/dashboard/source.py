@@ -128,15 +128,17 @@ class RunSource:
         self.inode, self.log_size = st.st_ino, st.st_size
         if st.st_size == self.offset:
             return None if reset else set()
+        at = self.offset
         lines, self.offset = read_whole_lines(log, self.offset)
         changed: set[tuple[str, int]] = set()
         for line in lines:
+            at += len(line) + 1
             if not line.strip():
                 continue
             try:
                 record = AttemptRecord.model_validate_json(line)
             except ValidationError:
-                self.errors.append(f"{log}: a line near byte {self.offset} is not a valid attempt record (skipped)")
+                self.errors.append(f"{log}: the line ending at byte {at} is not a valid attempt record (skipped)")
                 continue
             self.records.append(record)
             self.episodes.setdefault((record.task, record.run), {})[record.attempt] = record
@@ -319,13 +321,11 @@ class RunSource:
         return target
 
 
-def find_run_dirs(path: str | Path) -> list[Path]:
-    """A run directory, or the run directories directly inside a directory of runs."""
-    path = Path(path)
-    if path.is_dir() and not is_run_dir(path):
-        children = sorted(p for p in path.iterdir() if p.is_dir() and is_run_dir(p))
-        if children:
-            return children
-    read_config(path)  # a clear RunDirError for anything else
-    return [path]
-
+def runs_in(path: Path) -> list[Path]:
+    """The run directory `path`, or the run directories directly inside it (none if it
+    does not exist yet)."""
+    if is_run_dir(path):
+        return [path]
+    if not path.is_dir():
+        return []
+    return sorted(p for p in path.iterdir() if p.is_dir() and is_run_dir(p))

@@ -99,7 +99,7 @@ function connect() {
 }
 
 function firstDetailed() {
-  for (const v of S.runs.values()) if (!v.live_only) return v.id;
+  for (const v of S.runs.values()) if (v.report) return v.id;
   return null;
 }
 
@@ -123,7 +123,7 @@ function renderCard(v) {
   const card = el("div", {
     class: "card" + (v.id === S.selected ? " selected" : ""), id: "card-" + v.id, "data-run": v.id,
     style: { "--run-color": colorOf(v.id) },
-    onclick: () => { if (!v.live_only) selectRun(v.id); },
+    onclick: () => { if (v.report) selectRun(v.id); },
   },
   el("h3", {}, el("span", { text: `${v.env} · ${v.label}` }), el("span", { class: "badge " + p.status, "data-field": "status", text: p.status + (p.loading ? " (loading)" : "") })),
   el("div", { class: "path", text: v.path || v.name }),
@@ -157,7 +157,7 @@ function field(name, text, key, value) {
 
 function renderSelect() {
   const sel = document.getElementById("run-select");
-  sel.replaceChildren(...[...S.runs.values()].filter((v) => !v.live_only).map((v) =>
+  sel.replaceChildren(...[...S.runs.values()].filter((v) => v.report).map((v) =>
     el("option", { value: v.id, selected: v.id === S.selected, text: `${v.env} · ${v.label} · ${v.name}` })));
   const v = S.runs.get(S.selected);
   const groups = document.getElementById("group-select");
@@ -442,8 +442,9 @@ function messageNode(ep, m, standIn) {
 }
 
 function figure(runId, path, caption) {
-  return el("figure", {}, el("a", { href: `/files/${runId}/${path}`, target: "_blank" },
-    el("img", { src: `/files/${runId}/${path}`, alt: caption, loading: "lazy" })), el("figcaption", { text: caption }));
+  const url = `/files/${runId}/` + path.split("/").map(encodeURIComponent).join("/");
+  return el("figure", {}, el("a", { href: url, target: "_blank" },
+    el("img", { src: url, alt: caption, loading: "lazy" })), el("figcaption", { text: caption }));
 }
 
 function closeEpisode() {
