@@ -255,11 +255,14 @@ def figures_for(reports: Sequence[Report]) -> list[tuple[str, str, Any, list[Rep
 
 def plot_all(reports: Sequence[Report], out: str | Path) -> list[Path]:
     """Write every applicable figure as PNG and PDF, and the drawn data as figures.json."""
+    figures = figures_for(reports)
+    if not figures:
+        return []
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     data: dict[str, Any] = {}
-    for stem, title, draw, rs in figures_for(reports):
+    for stem, title, draw, rs in figures:
         fig = Figure(figsize=(7.5, 4.5) if draw is not draw_vla_wm_scatter else (5.5, 5.5), layout="constrained")
         ax = fig.add_subplot()
         data[stem] = draw(ax, rs)
@@ -268,7 +271,5 @@ def plot_all(reports: Sequence[Report], out: str | Path) -> list[Path]:
             path = out / f"{stem}.{suffix}"
             fig.savefig(path, dpi=150)
             written.append(path)
-    if written:
-        (out / "figures.json").write_text(json.dumps(data, indent=1))
-        written.append(out / "figures.json")
-    return written
+    (out / "figures.json").write_text(json.dumps(data, indent=1))
+    return [*written, out / "figures.json"]

@@ -19,6 +19,7 @@ import pytest
 
 from dashboard_support import IPHYRE_TASKS, append, copy_run, mock_run
 from deepphy.config import RunConfig, RuntimeOptions
+from deepphy.dashboard.source import run_id
 from deepphy.metrics.report import report_of, table
 from deepphy.runner import evaluate
 from deepphy.runs.store import read_records
@@ -174,7 +175,7 @@ def test_page_shows_the_report_of_finished_runs(runs, serve, open_page, screensh
 
 
 def test_episode_view_shows_prompts_replies_and_frames(runs, serve, open_page, screenshots):
-    server = serve(str(runs[0]))
+    server = serve(*map(str, runs))
     page = open_page(server.url)
     records = read_records(runs[0])
     later = next(r for r in records if r.attempt >= 2)
@@ -197,6 +198,14 @@ def test_episode_view_shows_prompts_replies_and_frames(runs, serve, open_page, s
     page.screenshot(path=str(screenshots / "dashboard_episode.png"))
     page.keyboard.press("Escape")
     assert page.locator("#episode").is_hidden()
+
+    # a link to an episode opens it; a WM run's episode shows its predictions
+    wm = read_records(runs[1])
+    page = open_page(f"{server.url}#run={run_id(runs[1].resolve())}&task={wm[0].task}&r={wm[0].run}")
+    page.wait_for_selector("#episode .attempt")
+    mine = [r for r in wm if (r.task, r.run) == (wm[0].task, wm[0].run)]
+    predictions = page.eval_on_selector_all("#episode pre.prediction", "ps => ps.map(p => p.textContent)")
+    assert sorted(predictions) == sorted(r.steps[0].prediction for r in mine) and predictions
 
 
 def test_records_appended_to_a_run_appear_without_reload(runs, serve, open_page, screenshots, tmp_path):

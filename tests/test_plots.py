@@ -107,6 +107,7 @@ def test_plot_cli_writes_png_pdf_and_the_drawn_data(dirs, tmp_path, capsys):
     assert data["vla_vs_wm"]["points"][0]["vla"] == report_of(dirs["vla"])["overall"]["mean"]["success_at"][9]
     assert main(["plot", str(dirs["kinetix"]), "--out", str(tmp_path / "none")]) == 2
     assert "none of the figures applies" in capsys.readouterr().err
+    assert not (tmp_path / "none").exists()
 
 
 def test_plot_all_returns_the_files(dirs, tmp_path):
