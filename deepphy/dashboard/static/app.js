@@ -198,7 +198,7 @@ function lineChart(kind, spec, series) {
   const x0 = Math.min(...xs), x1 = Math.max(...xs);
   let top = 0;
   for (const v of shown) v.curve.mean.forEach((m, i) => { top = Math.max(top, (m || 0) + (v.curve.std[i] || 0)); });
-  const ymax = Math.min(1, Math.max(0.1, Math.ceil((top + 0.02) * 10) / 10));
+  const ymax = [0.1, 0.2, 0.25, 0.5, 0.75, 1].find((y) => y >= top + 0.01) || 1;  // five round ticks
   const X = (x) => L + (x1 === x0 ? (W - L - R) / 2 : ((x - x0) / (x1 - x0)) * (W - L - R));
   const Y = (y) => T + (1 - y / ymax) * (H - T - B);
   const svg = el("svg", { width: W, height: H, viewBox: `0 0 ${W} ${H}`, "data-kind": kind });
