@@ -1,4 +1,4 @@
-"""The `deepphy` command: run, report, envs, show."""
+"""The `deepphy` command: run, report, envs, show, watch, solve, dashboard, plot, export."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
                      help="run directories of one environment (e.g. VLA, WM and MOCK) for one combined table")
     fmt = rep.add_mutually_exclusive_group()
-    for flag in ("json", "csv", "markdown"):
+    for flag in ("json", "csv", "markdown", "latex"):
         fmt.add_argument(f"--{flag}", action="store_true", help=f"print {flag} instead of a text table")
 
     envs = sub.add_parser("envs", help="list environments and their task counts")
@@ -63,6 +63,22 @@ def build_parser() -> argparse.ArgumentParser:
     watch.add_argument("--interval", type=float, default=2.0, help="seconds between snapshots; default 2")
     watch.add_argument("--once", action="store_true", help="print one snapshot per live run and exit")
     watch.add_argument("--json", action="store_true", help="one JSON object per line (for dashboards)")
+
+    dash = sub.add_parser("dashboard", help="live web dashboard of run directories (and of the runs on a Ray cluster)")
+    dash.add_argument("run_dirs", nargs="*", metavar="RUN_DIR",
+                      help="run directories, or directories of run directories (new ones join the page as they "
+                           "appear; so does a run started later into a directory given here)")
+    dash.add_argument("--address", help="also show every run live on this Ray cluster")
+    dash.add_argument("--host", default="127.0.0.1", help="interface to listen on; default 127.0.0.1 (this machine only)")
+    dash.add_argument("--port", type=int, default=8700, help="port; default 8700, 0 picks a free one")
+
+    plot = sub.add_parser("plot", help="draw the paper's figures of one or more run directories (PNG and PDF)")
+    plot.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
+    plot.add_argument("--out", required=True, help="directory for the figures")
+
+    export = sub.add_parser("export", help="write the decisions of run directories as a Parquet dataset")
+    export.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
+    export.add_argument("--out", required=True, help="dataset directory (Parquet, images, README.md)")
 
     solve = sub.add_parser("solve", help="search an environment's tasks for solving actions (its solvability report)")
     solve.add_argument("--env", required=True, help="an environment with a solver (see `deepphy envs`)")
@@ -136,13 +152,16 @@ def run_summary(outcome) -> tuple[list[str], int]:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from deepphy.metrics.report import render_csv, render_json, render_markdown, render_text, report_of
+    from deepphy.metrics.report import (
+        render_csv, render_json, render_latex, render_markdown, render_text, report_of,
+    )
 
     reports = [report_of(run_dir) for run_dir in args.run_dirs]
     envs = sorted({r["env"] for r in reports})
     if len(envs) > 1:
         raise UserError(f"a report combines runs of one environment; got {', '.join(envs)}")
-    render = render_json if args.json else render_csv if args.csv else render_markdown if args.markdown else render_text
+    render = (render_json if args.json else render_csv if args.csv else render_markdown if args.markdown
+              else render_latex if args.latex else render_text)
     print(render(reports))
     return 0
 
@@ -233,8 +252,66 @@ def cmd_watch(args: argparse.Namespace) -> int:
         time.sleep(args.interval)
 
 
+def cmd_dashboard(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from deepphy.dashboard.server import Dashboard, serve
+    from deepphy.dashboard.source import RunSource, is_run_dir, runs_in
+
+    if not args.run_dirs and not args.address:
+        raise UserError("give run directories and/or --address of a Ray cluster")
+    if not 0 <= args.port <= 65535:
+        raise UserError(f"--port must be 0..65535, got {args.port}")
+    paths, roots = [], []
+    for arg in map(Path, args.run_dirs):
+        if arg.exists() and not arg.is_dir():
+            raise UserError(f"{arg} is not a directory")
+        if not is_run_dir(arg):  # a directory of runs, or one a run is about to be written to
+            roots.append(arg)
+            if not runs_in(arg):
+                print(f"deepphy: {arg} holds no run yet; the page shows it once one appears", file=sys.stderr)
+        paths += [p.resolve() for p in runs_in(arg)]
+    sources = [RunSource(p) for p in dict.fromkeys(paths)]  # a bad run directory: a clear error now
+
+    def announce(url: str) -> None:
+        print(f"dashboard: {url}  (Ctrl-C to stop)", flush=True)
+        if args.host not in ("127.0.0.1", "localhost", "::1"):
+            print(f"note: listening on {args.host}: whoever reaches this port can read these runs' prompts, "
+                  "replies and frames", file=sys.stderr)
+
+    try:
+        asyncio.run(serve(Dashboard(sources, roots, address=args.address), args.host, args.port, announce))
+    except OSError as e:
+        raise UserError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from deepphy.metrics.report import report_of
+    from deepphy.plots import plot_all
+
+    reports = [report_of(run_dir) for run_dir in args.run_dirs]
+    written = plot_all(reports, args.out)
+    if not written:
+        raise UserError("none of the figures applies to these run directories")
+    for path in written:
+        print(path)
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from deepphy.export import export
+
+    summary = export(args.run_dirs, args.out)
+    print(f"{summary.rows} decisions from {summary.runs} run director{'y' if summary.runs == 1 else 'ies'}, "
+          f"{summary.images} images -> {summary.out}")
+    return 0
+
+
 COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_show, "watch": cmd_watch,
-            "solve": cmd_solve}
+            "solve": cmd_solve, "dashboard": cmd_dashboard, "plot": cmd_plot, "export": cmd_export}
 
 
 def main(argv: list[str] | None = None) -> int:

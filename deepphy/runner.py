@@ -146,7 +146,8 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
         limiter = ensure_limiter(endpoint) if endpoint is not None else None
         model_worker = make_model_worker(config.model, spec, name=f"{prefix}/model", models_file=runtime.models_file)
         total = len(tasks) * config.runs
-        metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics")
+        metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics", run={
+            "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})
         actors = [*env_workers, model_worker, metrics, *([limiter] if limiter is not None else [])]
         ray.get(metrics.add.remote([r.summary() for r in existing], resumed=True), timeout=RAY_TIMEOUT_S)
         scheduler = Scheduler(config, runtime, spec, tasks, store, env_workers, model_worker, metrics, k_max)

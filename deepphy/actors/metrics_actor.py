@@ -12,8 +12,9 @@ from deepphy.runs.records import AttemptSummary
 
 
 class MetricsImpl:
-    def __init__(self, episodes_total: int, max_attempts: int) -> None:
+    def __init__(self, episodes_total: int, max_attempts: int, run: dict[str, Any] | None = None) -> None:
         self.live = LiveMetrics(episodes_total, max_attempts)
+        self.run = run or {}  # where the run writes and what it evaluates: dashboards find it here
 
     def add(self, summaries: list[AttemptSummary], resumed: bool = False) -> None:
         self.live.add(summaries, resumed)
@@ -22,8 +23,9 @@ class MetricsImpl:
         self.live.update(**activity)
 
     def snapshot(self) -> dict[str, Any]:
-        return self.live.snapshot()
+        return {**self.live.snapshot(), **self.run}
 
 
-def make_metrics_actor(episodes_total: int, max_attempts: int, *, name: str | None = None):
-    return ray.remote(num_cpus=0)(MetricsImpl).options(name=name).remote(episodes_total, max_attempts)
+def make_metrics_actor(episodes_total: int, max_attempts: int, *, name: str | None = None,
+                       run: dict[str, Any] | None = None):
+    return ray.remote(num_cpus=0)(MetricsImpl).options(name=name).remote(episodes_total, max_attempts, run)

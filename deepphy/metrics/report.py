@@ -228,6 +228,35 @@ def render_csv(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
     return buf.getvalue()
 
 
+_LATEX_SPECIAL = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
+                  "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}"}
+
+
+def _latex_cell(text: str) -> str:
+    escaped = "".join(_LATEX_SPECIAL.get(c, c) for c in text)
+    return escaped.replace("±", r"$\pm$").replace("*", r"$\star$")
+
+
+def render_latex(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
+    """A booktabs `tabular` of the same table (needs \\usepackage{booktabs})."""
+    header, rows = table(_as_list(reports))
+    numeric = [all(_is_figure(r[i]) for r in rows) for i in range(len(header))]
+    lines = [
+        "% success rate (%) within k attempts, mean $\\pm$ std over runs (deepphy report --latex)",
+        r"\begin{tabular}{" + "".join("r" if n else "l" for n in numeric) + "}",
+        r"\toprule",
+        " & ".join(_latex_cell(h) for h in header) + r" \\",
+        r"\midrule",
+    ]
+    lines += [" & ".join(_latex_cell(c) for c in r) + r" \\" for r in rows]
+    lines += [r"\bottomrule", r"\end{tabular}"]
+    return "\n".join(lines)
+
+
+def _is_figure(cell: str) -> bool:
+    return cell in ("", "-") or cell.replace("±", "").replace(".", "").replace("-", "").isdigit()
+
+
 def render_json(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
     """One report as an object; several as a list."""
     return json.dumps(reports if isinstance(reports, dict) or len(reports) > 1 else reports[0], indent=2)

@@ -1,0 +1,333 @@
+"""The dashboard's web server (aiohttp): static page, JSON API, live updates over
+Server-Sent Events.
+
+Every run directory is polled (stat, then only the new whole lines of its log); when a run
+changed, its view (card, curve, report table) is recomputed, throttled for large runs, and
+pushed to every open page with the grid cells that changed. With a Ray address, the runs
+live on that cluster are found by their metrics actors and their run directories added.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+from aiohttp import web
+
+from deepphy.dashboard.source import RunSource, is_run_dir, run_id, runs_in
+
+log = logging.getLogger(__name__)
+
+STATIC = Path(__file__).parent / "static"
+POLL_S = 0.25  # how often each run directory is checked for new records (a stat, usually)
+REFRESH_S = 2.0  # a view is re-sent at least this often while its run is live (rate, ETA)
+LIVE_POLL_S = 2.0  # how often the Ray cluster is asked for its live runs
+SCAN_S = 1.0  # how often watched directories are looked through for new run directories
+MAX_CELL_DELTA = 5000  # beyond this many changed cells, pages re-fetch their grid page
+HEARTBEAT_S = 15.0
+CLIENT_BACKLOG = 200  # messages queued for a page that does not read; then it is dropped
+
+
+class Dashboard:
+    def __init__(self, sources: list[RunSource], roots: list[Path] = (), address: str | None = None,
+                 poll_s: float = POLL_S) -> None:
+        self.sources: dict[str, RunSource] = {s.id: s for s in sources}
+        # Directories that are not (yet) run directories: a run started into one, or a run
+        # directory created inside one, joins the page when it appears.
+        self.roots = [Path(r).resolve() for r in roots]
+        self._unreadable: set[Path] = set()
+        self.address = address
+        self.poll_s = poll_s
+        self.views: dict[str, dict[str, Any]] = {}  # latest view per run, in the order runs were added
+        self.live_only: dict[str, dict[str, Any]] = {}  # Ray run id -> view, when its directory is not readable
+        self.clients: set[asyncio.Queue] = set()
+        # RunSource is not thread-safe: every call on one goes through this single thread.
+        self.executor = ThreadPoolExecutor(1, thread_name_prefix="dashboard-runs")
+        self._pending: dict[str, set | None] = {}  # run id -> changed cells not yet sent (None: all)
+        self._sent_at: dict[str, float] = {}
+        self._cost: dict[str, float] = {}  # seconds the last view took: throttles large runs
+        self._tasks: list[asyncio.Task] = []
+
+    async def _call(self, fn, *args):
+        return await asyncio.get_running_loop().run_in_executor(self.executor, fn, *args)
+
+    # -- lifecycle ----------------------------------------------------------------------
+
+    async def start(self, app: web.Application) -> None:
+        self._tasks.append(asyncio.create_task(self._poll_loop()))
+        if self.address:
+            self._tasks.append(asyncio.create_task(self._live_loop()))
+
+    async def stop(self, app: web.Application) -> None:
+        for task in self._tasks:
+            task.cancel()
+        await asyncio.gather(*self._tasks, return_exceptions=True)
+        for q in list(self.clients):
+            q.put_nowait(None)
+        self.executor.shutdown(wait=False, cancel_futures=True)
+
+    # -- updates ------------------------------------------------------------------------
+
+    async def _poll_loop(self) -> None:
+        next_scan = 0.0
+        while True:
+            started = time.monotonic()
+            if self.roots and started >= next_scan:
+                await self._scan_roots()
+                next_scan = started + SCAN_S
+            for source in list(self.sources.values()):
+                try:
+                    await self._poll(source)
+                except Exception:  # noqa: BLE001 - one bad run must not stop the others
+                    log.exception("polling %s", source.path)
+            await asyncio.sleep(max(0.05, self.poll_s - (time.monotonic() - started)))
+
+    async def _poll(self, source: RunSource) -> None:
+        changed = await self._call(source.poll)
+        pending = self._pending.setdefault(source.id, set())
+        if changed is None or pending is None:
+            self._pending[source.id] = None
+        else:
+            pending |= changed
+        now = time.monotonic()
+        since = now - self._sent_at.get(source.id, 0.0)
+        dirty = self._pending[source.id] is None or bool(self._pending[source.id]) or source.id not in self.views
+        live = self.views.get(source.id, {}).get("progress", {}).get("status") == "running"
+        # A large run's report takes a while: wait twice its cost between views, so that the
+        # worker thread is never busy more than a third of the time.
+        if not (dirty and since >= 2 * self._cost.get(source.id, 0.0)) and not (live and since >= REFRESH_S):
+            return
+        t0 = time.monotonic()
+        view = await self._call(source.view)
+        self._cost[source.id] = time.monotonic() - t0
+        keys = self._pending[source.id]
+        reset = keys is None or len(keys) > MAX_CELL_DELTA
+        cells = [] if reset else await self._call(source.cells, keys)
+        self._pending[source.id] = set()
+        self._sent_at[source.id] = time.monotonic()
+        self.views[source.id] = view
+        self._broadcast({"type": "run", "run": view, "cells": cells, "grid_reset": reset})
+
+    async def _scan_roots(self) -> None:
+        known = {s.path for s in self.sources.values()}
+        removed = False
+        for root in self.roots:
+            found = await self._call(runs_in, root)
+            for path in found:
+                if path in known or path in self._unreadable:
+                    continue
+                try:
+                    source = await self._call(RunSource, path)
+                except Exception as e:  # noqa: BLE001 - say so once, keep the others going
+                    log.warning("cannot show %s: %s", path, e)
+                    self._unreadable.add(path)
+                    continue
+                self.sources[source.id] = source  # its first view goes out with the next poll
+                known.add(path)
+            waiting = f"wait-{run_id(root)}"
+            if found and waiting in self.views:
+                del self.views[waiting]
+                removed = True
+            elif not found and waiting not in self.views:
+                self.views[waiting] = waiting_view(waiting, root)
+                self._broadcast({"type": "run", "run": self.views[waiting], "cells": [], "grid_reset": False})
+        if removed:  # pages drop the placeholder by taking the whole state again
+            data = sse("state", self.state())
+            for q in list(self.clients):
+                q.put_nowait(data)
+
+    async def _live_loop(self) -> None:
+        from deepphy.dashboard import live
+
+        await asyncio.to_thread(live.connect, self.address)
+        while True:
+            try:
+                snapshots = await asyncio.to_thread(live.live_snapshots)
+                await self._merge_live(snapshots)
+            except Exception:  # noqa: BLE001 - a cluster hiccup: try again
+                log.exception("asking %s for live runs", self.address)
+            await asyncio.sleep(LIVE_POLL_S)
+
+    async def _merge_live(self, snapshots: dict[str, dict[str, Any]]) -> None:
+        by_path = {str(s.path): s for s in self.sources.values()}
+        found = set()
+        for ray_id, snap in snapshots.items():
+            run_dir = snap.get("run_dir")
+            path = str(Path(run_dir).resolve()) if run_dir else None
+            if path and path not in by_path and is_run_dir(Path(path)):
+                try:
+                    source = await self._call(RunSource, path)
+                except Exception:  # noqa: BLE001 - unreadable here: show the snapshot only
+                    log.warning("cannot read the run directory %s of live run %s", path, ray_id)
+                else:
+                    self.sources[source.id] = by_path[path] = source
+            if path in by_path:
+                by_path[path].snapshot = snap
+                found.add(by_path[path].id)
+                self.live_only.pop(ray_id, None)
+            else:
+                view = live_only_view(ray_id, snap)
+                self.live_only[ray_id] = self.views[view["id"]] = view
+                self._broadcast({"type": "run", "run": view, "cells": [], "grid_reset": False})
+        for source in self.sources.values():
+            if source.id not in found:
+                source.snapshot = None
+        for ray_id, view in self.live_only.items():
+            if ray_id not in snapshots and view["progress"]["status"] == "running":
+                view["progress"]["status"] = "ended"
+                self._broadcast({"type": "run", "run": view, "cells": [], "grid_reset": False})
+
+    def _broadcast(self, message: dict[str, Any]) -> None:
+        data = sse("message", message)
+        for q in list(self.clients):
+            if q.qsize() > CLIENT_BACKLOG:
+                self.clients.discard(q)
+                q.put_nowait(None)  # the page reconnects and gets the whole state again
+            else:
+                q.put_nowait(data)
+
+    # -- HTTP ---------------------------------------------------------------------------
+
+    def state(self) -> dict[str, Any]:
+        return {"runs": list(self.views.values()), "address": self.address}
+
+    async def index(self, request: web.Request) -> web.StreamResponse:
+        return web.FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-cache"})
+
+    async def api_state(self, request: web.Request) -> web.Response:
+        return web.json_response(self.state())
+
+    def _source(self, request: web.Request) -> RunSource:
+        source = self.sources.get(request.match_info["run"])
+        if source is None:
+            raise web.HTTPNotFound(text="no such run")
+        return source
+
+    async def api_report(self, request: web.Request) -> web.Response:
+        source = self._source(request)
+        return web.json_response(await self._call(source.report))
+
+    async def api_grid(self, request: web.Request) -> web.Response:
+        source = self._source(request)
+        try:
+            page = int(request.query.get("page", "0"))
+        except ValueError:
+            raise web.HTTPBadRequest(text="page must be an integer") from None
+        group = request.query.get("group") or None
+        return web.json_response(await self._call(source.grid, page, group))
+
+    async def api_episode(self, request: web.Request) -> web.Response:
+        source = self._source(request)
+        try:
+            task, run = request.query["task"], int(request.query["run"])
+            return web.json_response(await self._call(source.episode, task, run))
+        except (KeyError, ValueError) as e:
+            raise web.HTTPNotFound(text=f"no such episode: {e}") from None
+
+    async def frame(self, request: web.Request) -> web.StreamResponse:
+        source = self._source(request)
+        path = source.frame_path(request.match_info["path"])
+        if path is None:
+            raise web.HTTPNotFound(text="no such frame")
+        return web.FileResponse(path, headers={"Cache-Control": "max-age=3600"})  # frames never change
+
+    async def events(self, request: web.Request) -> web.StreamResponse:
+        response = web.StreamResponse(headers={
+            "Content-Type": "text/event-stream", "Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+        await response.prepare(request)
+        queue: asyncio.Queue = asyncio.Queue()
+        self.clients.add(queue)
+        try:
+            await response.write(sse("state", self.state()))
+            while True:
+                try:
+                    data = await asyncio.wait_for(queue.get(), HEARTBEAT_S)
+                except asyncio.TimeoutError:
+                    data = b": heartbeat\n\n"
+                if data is None:
+                    break
+                await response.write(data)
+        except (ConnectionResetError, asyncio.CancelledError):
+            pass
+        finally:
+            self.clients.discard(queue)
+        return response
+
+
+def sse(event: str, payload: Any) -> bytes:
+    return f"event: {event}\ndata: {json.dumps(payload, separators=(',', ':'))}\n\n".encode()
+
+
+def live_only_view(ray_id: str, snap: dict[str, Any]) -> dict[str, Any]:
+    """A live run whose directory this machine cannot read: the metrics actor's figures."""
+    from deepphy.metrics.report import setting
+
+    config = snap.get("config") or {}
+    label = setting({"model": config.get("model", "?"), "format": config.get("format", "?"),
+                     "env_options": config.get("env_options", {})})
+    done, total = snap.get("episodes_done", 0), snap.get("episodes_total", 0)
+    elapsed = snap.get("elapsed_s") or 0.0
+    rate_eps = done / elapsed if elapsed > 0 else 0.0
+    return {
+        "id": f"ray-{ray_id}", "path": snap.get("run_dir", ""), "name": ray_id, "label": label,
+        "env": config.get("env", "?"), "model": config.get("model", "?"), "format": config.get("format", "?"),
+        "live_only": True, "live": True,
+        "progress": {"status": "running", "episodes_done": done, "episodes_total": total,
+                     "attempts": snap.get("attempts", 0), "attempts_per_s": snap.get("attempts_per_s"),
+                     "eta_s": (total - done) / rate_eps if rate_eps else None, "loading": False},
+        "totals": {k: snap.get(k, 0) for k in ("solved", "attempts", "invalid_attempts", "model_errors", "retries",
+                                               "input_tokens", "output_tokens", "cost_usd")},
+        "curve": None, "stars": None, "table": None, "report": None, "errors": [],
+        "note": "the run directory is not readable from here: the live snapshot of its metrics actor",
+    }
+
+
+def waiting_view(view_id: str, root: Path) -> dict[str, Any]:
+    """A directory given on the command line that holds no run yet."""
+    return {
+        "id": view_id, "path": str(root), "name": root.name, "label": "no run yet", "env": "waiting",
+        "model": "", "format": "", "waiting": True, "live": False,
+        "progress": {"status": "waiting", "episodes_done": 0, "episodes_total": 0, "attempts": 0,
+                     "attempts_per_s": None, "eta_s": None, "loading": False},
+        "totals": dict.fromkeys(("solved", "attempts", "invalid_attempts", "model_errors", "retries",
+                                 "input_tokens", "output_tokens", "cost_usd"), 0),
+        "curve": None, "stars": None, "table": None, "report": None, "errors": [],
+        "note": "waiting for a run directory here (a `deepphy run --out` into it, or one created inside it)",
+    }
+
+
+def make_app(dashboard: Dashboard) -> web.Application:
+    app = web.Application()
+    app.add_routes([
+        web.get("/", dashboard.index),
+        web.get("/api/state", dashboard.api_state),
+        web.get("/api/events", dashboard.events),
+        web.get("/api/runs/{run}/report", dashboard.api_report),
+        web.get("/api/runs/{run}/grid", dashboard.api_grid),
+        web.get("/api/runs/{run}/episode", dashboard.api_episode),
+        web.get("/files/{run}/{path:.+}", dashboard.frame),
+        web.static("/static", STATIC),
+    ])
+    app.on_startup.append(dashboard.start)
+    app.on_shutdown.append(dashboard.stop)
+    return app
+
+
+async def serve(dashboard: Dashboard, host: str, port: int, announce) -> None:
+    """Serve until cancelled; `announce(url)` is called once the socket listens."""
+    runner = web.AppRunner(make_app(dashboard), access_log=None)
+    await runner.setup()
+    site = web.TCPSite(runner, host, port)
+    await site.start()
+    bound = runner.addresses[0]
+    shown = f"[{bound[0]}]" if ":" in bound[0] else bound[0]
+    announce(f"http://{shown}:{bound[1]}/")
+    try:
+        await asyncio.Event().wait()
+    finally:
+        await runner.cleanup()

@@ -1,0 +1,331 @@
+"""One run directory as the dashboard sees it: the attempt log tailed by byte offset, the
+report built by the same code as `deepphy report`, the task grid and the episodes.
+
+The run directory is the source of truth; a live metrics actor only adds its own progress
+figures. Not thread-safe: the server calls every method from one worker thread.
+"""
+
+from __future__ import annotations
+
+import bisect
+import hashlib
+import json
+import os
+import re
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from deepphy.metrics import figures as F
+from deepphy.metrics.report import build_report, setting, table
+from deepphy.runs.records import AttemptRecord
+from deepphy.runs.store import ATTEMPTS, CONFIG, read_config
+
+# Bytes of the log consumed per poll: a huge log loads in slices, so the page shows
+# progress and other requests get a turn between them.
+READ_CHUNK = 8 * 1024 * 1024
+RATE_WINDOW_S = 60.0  # attempts/s and ETA of a live run: over the records of the last minute
+GRID_PAGE = 200  # tasks per grid page
+_IMAGE = re.compile(r"^<image ([^:>]*): (.*)>$", re.S)  # prompt_as_json's image placeholder
+
+
+def run_id(path: Path) -> str:
+    return hashlib.sha1(str(path).encode()).hexdigest()[:10]
+
+
+def is_run_dir(path: Path) -> bool:
+    return (path / CONFIG).is_file()
+
+
+def writer_holds_lock(path: Path) -> bool | None:
+    """Whether a `deepphy run` holds the directory's lock (it is writing now), read from
+    /proc/locks so that the dashboard never takes the lock itself (a run starting at that
+    moment would then refuse the directory). None where /proc/locks does not exist."""
+    try:
+        st = (path / ".lock").stat()
+    except FileNotFoundError:
+        return False
+    try:
+        locks = Path("/proc/locks").read_text()
+    except OSError:
+        return None
+    wanted = f"{os.major(st.st_dev):02x}:{os.minor(st.st_dev):02x}:{st.st_ino}"
+    return any(line.split()[5] == wanted for line in locks.splitlines() if len(line.split()) > 5 and "FLOCK" in line)
+
+
+def read_whole_lines(log: Path, offset: int, limit: int = READ_CHUNK) -> tuple[list[bytes], int]:
+    """The complete lines after `offset` (at most about `limit` bytes) and the offset after
+    them. A partial last line, still being written, stays unread."""
+    with open(log, "rb") as f:
+        f.seek(offset)
+        data = f.read(limit)
+        if len(data) == limit:  # finish the line we cut into
+            while (more := f.read(64 * 1024)) and b"\n" not in more:
+                data += more
+            data += more
+    end = data.rfind(b"\n")
+    if end < 0:
+        return [], offset
+    return data[:end].split(b"\n"), offset + end + 1
+
+
+@dataclass
+class Cell:
+    state: str  # solved | failed | progress (started, not finished) | pending (no attempt yet)
+    attempts: int = 0
+    solved_at: int | None = None
+    invalid: int = 0
+    stars: int | None = None
+    steps_to_solve: int | None = None
+
+    def as_json(self) -> list[Any]:  # compact: grids of thousands of cells travel often
+        return [self.state, self.attempts, self.solved_at, self.invalid, self.stars, self.steps_to_solve]
+
+
+class RunSource:
+    def __init__(self, path: str | Path) -> None:
+        from deepphy.runner import resolve
+
+        self.path = Path(path).resolve()
+        self.id = run_id(self.path)
+        self.config = read_config(self.path)
+        spec, self.tasks, self.k_max = resolve(self.config)
+        self.max_steps = spec.max_steps
+        self.task_index = {t.id: i for i, t in enumerate(self.tasks)}
+        self.records: list[AttemptRecord] = []
+        self.episodes: dict[tuple[str, int], dict[int, AttemptRecord]] = {}
+        self.offset = 0
+        self.inode: int | None = None
+        self.log_size = 0
+        self.errors: list[str] = []
+        self.version = 0  # bumps whenever records arrive
+        self.snapshot: dict[str, Any] | None = None  # the live metrics actor's, if one was found
+        self._report: tuple[int, dict[str, Any]] | None = None
+        self._cells: dict[tuple[str, int], Cell] = {}  # cache; poll() drops what changed
+        # timing facts kept up to date by poll(), for attempts/s and ETA without rescanning
+        self._finished: list[float] = []  # sorted finish times of all attempts
+        self._first_started: float | None = None
+        self._episode_ends: dict[tuple[str, int], float] = {}  # finished episodes -> their last finish time
+
+    # -- reading ------------------------------------------------------------------------
+
+    def poll(self) -> set[tuple[str, int]] | None:
+        """Read what was appended since the last call. Returns the (task, run) episodes that
+        changed, or None if the log was replaced (everything changed)."""
+        log = self.path / ATTEMPTS
+        try:
+            st = log.stat()
+        except FileNotFoundError:
+            return set()
+        reset = self.inode is not None and (st.st_ino != self.inode or st.st_size < self.offset)
+        if reset:  # a different log (the directory was recreated): start over
+            self.records, self.episodes, self.offset, self.errors, self._cells = [], {}, 0, [], {}
+            self._finished, self._first_started, self._episode_ends = [], None, {}
+            self.version += 1
+        self.inode, self.log_size = st.st_ino, st.st_size
+        if st.st_size == self.offset:
+            return None if reset else set()
+        at = self.offset
+        lines, self.offset = read_whole_lines(log, self.offset)
+        changed: set[tuple[str, int]] = set()
+        for line in lines:
+            at += len(line) + 1
+            if not line.strip():
+                continue
+            try:
+                record = AttemptRecord.model_validate_json(line)
+            except ValidationError:
+                self.errors.append(f"{log}: the line ending at byte {at} is not a valid attempt record (skipped)")
+                continue
+            self.records.append(record)
+            self.episodes.setdefault((record.task, record.run), {})[record.attempt] = record
+            changed.add((record.task, record.run))
+            if record.timing.finished:
+                bisect.insort(self._finished, record.timing.finished)
+            if record.timing.started:
+                self._first_started = min(self._first_started or record.timing.started, record.timing.started)
+        for key in changed:
+            self._cells.pop(key, None)
+            if self._cell(key).state in ("solved", "failed"):
+                self._episode_ends[key] = max(r.timing.finished for r in self.episodes[key].values())
+        if changed:
+            self.version += 1
+        return None if reset else changed
+
+    @property
+    def label(self) -> str:
+        c = self.config
+        return setting({"model": c.model, "format": c.format.value, "env_options": c.env_options})
+
+    @property
+    def loading(self) -> bool:
+        return self.offset < self.log_size
+
+    # -- figures (all from the report code) ---------------------------------------------
+
+    def report(self) -> dict[str, Any]:
+        """Exactly what `deepphy report --json` prints for the records read so far."""
+        if self._report is None or self._report[0] != self.version:
+            self._report = (self.version, build_report(self.config, self.tasks, self.records, self.k_max))
+        return self._report[1]
+
+    def curve(self, report: dict[str, Any]) -> dict[str, Any]:
+        """The success curve the report implies: within k attempts (K > 1), within k decisions
+        (the report's checkpoints, else every decision for K = 1), mean and std over runs."""
+        m, s = report["overall"]["mean"], report["overall"]["std"]
+        if "success_within_steps" in m:
+            x = list(m["success_within_steps"])
+            return {"kind": "decisions", "x": [int(k) for k in x],
+                    "mean": [m["success_within_steps"][k] for k in x], "std": [s["success_within_steps"][k] for k in x]}
+        if report["max_attempts"] > 1:
+            return {"kind": "attempts", "x": list(range(1, report["max_attempts"] + 1)),
+                    "mean": m["success_at"], "std": s["success_at"]}
+        # One attempt of many decisions without checkpoints in the report: every decision,
+        # with the report's own functions (its last point is the report's success_at[0]).
+        wanted = set(self.task_index)
+        eps = [e for e in F.episodes(self.records, self.k_max) if e.task in wanted and e.run < self.config.runs]
+        xs = list(range(1, self.max_steps + 1))
+        per_run = [[F.success_within_steps([e for e in eps if e.run == r], k, len(self.tasks)) for k in xs]
+                   for r in range(self.config.runs)]
+        stats = [F.MeanStd.of([p[i] for p in per_run]) for i in range(len(xs))]
+        return {"kind": "decisions", "x": xs, "mean": [st.mean for st in stats], "std": [st.std for st in stats]}
+
+    def progress(self, report: dict[str, Any], now: float | None = None) -> dict[str, Any]:
+        now = time.time() if now is None else now
+        per_run = report["overall"]["per_run"]
+        done = sum(r["tasks"] - r["unfinished"] for r in per_run)
+        total = report["overall"]["tasks"] * report["runs"]
+        attempts = sum(r["attempts"] for r in per_run)
+        writing = writer_holds_lock(self.path)
+        if writing is None:  # no /proc/locks: a log that grew in the last half minute is live
+            writing = now - (self.path / ATTEMPTS).stat().st_mtime < 30 if self.log_size else False
+        rate = eta = None
+        if writing:
+            cutoff = now - RATE_WINDOW_S
+            span = min(RATE_WINDOW_S, now - (self._first_started or now))
+            if span > 1:
+                rate = (len(self._finished) - bisect.bisect_left(self._finished, cutoff)) / span
+                ended = sum(1 for t in self._episode_ends.values() if t >= cutoff)
+                eta = (total - done) / (ended / span) if ended else None
+            if self.snapshot:  # the live run's own figure
+                rate = self.snapshot.get("attempts_per_s", rate)
+        elif len(self._finished) > 1 and self._first_started:
+            rate = len(self._finished) / max(self._finished[-1] - self._first_started, 1e-9)
+        status = "running" if writing else "complete" if done == total else "incomplete"
+        return {"status": status, "episodes_done": done, "episodes_total": total, "attempts": attempts,
+                "attempts_per_s": rate, "eta_s": eta, "loading": self.loading,
+                "bytes_read": self.offset, "bytes_total": self.log_size}
+
+    def view(self) -> dict[str, Any]:
+        """Everything a run's card, curve and table show."""
+        report = self.report()
+        per_run = report["overall"]["per_run"]
+        totals = {k: sum(r[k] for r in per_run) for k in
+                  ("solved", "attempts", "invalid_attempts", "model_errors", "retries",
+                   "input_tokens", "output_tokens", "cost_usd")}
+        header, rows = table([report])
+        return {
+            "id": self.id, "path": str(self.path), "name": self.path.name, "label": setting(report),
+            "env": report["env"], "model": report["model"], "format": report["format"],
+            "env_options": report["env_options"], "runs": report["runs"], "k_max": report["max_attempts"],
+            "groups": sorted({t.group for t in self.tasks if t.group}), "tasks": len(self.tasks),
+            "version": self.version, "progress": self.progress(report), "totals": totals,
+            "curve": self.curve(report), "stars": report["overall"]["mean"].get("stars"),
+            "table": {"header": header, "rows": rows}, "report": report, "errors": self.errors[-5:],
+            "live": self.snapshot is not None,
+        }
+
+    # -- grid ---------------------------------------------------------------------------
+
+    def _cell(self, key: tuple[str, int]) -> Cell:
+        if key in self._cells:
+            return self._cells[key]
+        attempts = self.episodes.get(key)
+        if not attempts:
+            return Cell("pending")
+        e = F.episodes(attempts.values(), self.k_max)[0]
+        state = "solved" if e.solved else "failed" if e.finished else "progress"
+        self._cells[key] = cell = Cell(state, e.attempts, e.solved_at, e.invalid, e.stars, e.steps_to_solve)
+        return cell
+
+    def cells(self, keys: set[tuple[str, int]]) -> list[list[Any]]:
+        """[task, run, *cell] for each episode, in task order."""
+        keys = [k for k in keys if k[0] in self.task_index and k[1] < self.config.runs]
+        keys.sort(key=lambda k: (self.task_index[k[0]], k[1]))
+        return [[task, run, *self._cell((task, run)).as_json()] for task, run in keys]
+
+    def grid(self, page: int = 0, group: str | None = None, page_size: int = GRID_PAGE) -> dict[str, Any]:
+        tasks = [t for t in self.tasks if not group or t.group == group]
+        pages = max(1, -(-len(tasks) // page_size))
+        page = min(max(page, 0), pages - 1)
+        shown = tasks[page * page_size : (page + 1) * page_size]
+        return {
+            "run": self.id, "page": page, "pages": pages, "page_size": page_size, "group": group or "",
+            "runs": self.config.runs, "k_max": self.k_max, "max_steps": self.max_steps, "tasks_total": len(tasks),
+            "tasks": [[t.id, t.group] for t in shown],
+            "cells": [[self._cell((t.id, r)).as_json() for r in range(self.config.runs)] for t in shown],
+        }
+
+    # -- one episode --------------------------------------------------------------------
+
+    def episode(self, task: str, run: int) -> dict[str, Any]:
+        if task not in self.task_index:
+            raise KeyError(f"no task {task!r} in this run")
+        records = sorted(self.episodes.get((task, run), {}).values(), key=lambda r: r.attempt)
+        prompts: dict[str, Any] = {}
+        attempts = []
+        for r in records:
+            for s in r.steps:
+                if s.prompt not in prompts:
+                    prompts[s.prompt] = self._prompt(task, s.prompt)
+            attempts.append(r.model_dump(mode="json"))
+        return {
+            "run_id": self.id, "task": task, "run": run, "group": self.tasks[self.task_index[task]].group,
+            "label": self.label, "env": self.config.env, "k_max": self.k_max,
+            "max_steps": self.max_steps, "cell": self._cell((task, run)).as_json(),
+            "attempts": attempts, "prompts": prompts,
+        }
+
+    def _prompt(self, task: str, digest: str) -> list[dict[str, Any]] | None:
+        """The prompt's messages; each image placeholder resolved to its stored file when it
+        is one (history key frames are stored under frames/<task>/ by their file name; the
+        current observation's images are not stored)."""
+        try:
+            messages = json.loads((self.path / "prompts" / f"{digest}.json").read_text())
+        except (OSError, ValueError):
+            return None
+        out = []
+        for m in messages:
+            parts = []
+            for text in m.get("content", []):
+                image = _IMAGE.match(text) if isinstance(text, str) else None
+                if image is None:
+                    parts.append({"type": "text", "text": text})
+                    continue
+                name, caption = image.groups()
+                stored = "/" not in name and name not in ("", ".", "..") and (self.path / "frames" / task / name).is_file()
+                parts.append({"type": "image", "name": name, "caption": caption,
+                              "file": f"frames/{task}/{name}" if stored else None})
+            out.append({"role": m.get("role"), "content": parts})
+        return out
+
+    def frame_path(self, rel: str) -> Path | None:
+        """A stored image under frames/, or None (nothing outside it is served)."""
+        target = (self.path / rel).resolve()
+        frames = self.path / "frames"
+        if target.suffix != ".png" or not target.is_relative_to(frames.resolve()) or not target.is_file():
+            return None
+        return target
+
+
+def runs_in(path: Path) -> list[Path]:
+    """The run directory `path`, or the run directories directly inside it (none if it
+    does not exist yet)."""
+    if is_run_dir(path):
+        return [path]
+    if not path.is_dir():
+        return []
+    return sorted(p for p in path.iterdir() if p.is_dir() and is_run_dir(p))

@@ -1,0 +1,469 @@
+// deepphy dashboard: one page, no build step. State arrives over Server-Sent Events
+// (/api/events): a "state" event with every run's view, then a message per change with the
+// run's new view and the grid cells that changed. Every number comes from the server, which
+// computes it with the report code of `deepphy report`.
+"use strict";
+
+const PALETTE = ["#2563eb", "#dc2626", "#16a34a", "#9333ea", "#ea580c", "#0891b2", "#ca8a04", "#db2777"];
+const CHART_KINDS = {
+  attempts: { title: "Success rate within k attempts", x: "attempt k" },
+  decisions: { title: "Success rate within k decisions (one attempt)", x: "decision k" },
+};
+
+const S = {
+  runs: new Map(),     // id -> view
+  colors: new Map(),   // id -> colour, stable in order of arrival
+  hidden: new Set(),   // ids left out of the charts
+  selected: null,      // run whose table and grid are shown
+  grid: null,          // the grid page shown: {run, page, group, tasks, cells, ...}
+  page: 0,
+  group: "",
+  episode: null,       // {run, task, r} of the open episode view
+  gridTimer: null,
+};
+
+// -- small helpers ---------------------------------------------------------------------
+
+function el(tag, attrs, ...children) {
+  const node = tag === "svg" || SVG_TAGS.has(tag)
+    ? document.createElementNS("http://www.w3.org/2000/svg", tag) : document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs || {})) {
+    if (v === null || v === undefined || v === false) continue;
+    if (k === "class") node.setAttribute("class", v);
+    else if (k === "text") node.textContent = v;
+    else if (k.startsWith("on")) node.addEventListener(k.slice(2), v);
+    else if (k === "style" && typeof v === "object") for (const [p, x] of Object.entries(v)) node.style.setProperty(p, x);
+    else node.setAttribute(k, v === true ? "" : String(v));
+  }
+  for (const c of children.flat()) {
+    if (c === null || c === undefined || c === false) continue;
+    node.append(c instanceof Node ? c : document.createTextNode(String(c)));
+  }
+  return node;
+}
+const SVG_TAGS = new Set(["g", "line", "polyline", "polygon", "circle", "rect", "text", "title", "path"]);
+
+const pct = (x) => (x === null || x === undefined ? "–" : (100 * x).toFixed(1) + "%");
+const num = (x, d = 0) => (x === null || x === undefined ? "–" : Number(x).toLocaleString("en-US", { maximumFractionDigits: d, minimumFractionDigits: d }));
+function duration(s) {
+  if (s === null || s === undefined || !isFinite(s)) return "–";
+  s = Math.round(s);
+  if (s < 60) return `${s} s`;
+  if (s < 3600) return `${Math.floor(s / 60)} min ${s % 60} s`;
+  return `${Math.floor(s / 3600)} h ${Math.floor((s % 3600) / 60)} min`;
+}
+function colorOf(id) {
+  if (!S.colors.has(id)) S.colors.set(id, PALETTE[S.colors.size % PALETTE.length]);
+  return S.colors.get(id);
+}
+// Solved at attempt (or decision) k of K: dark green early, yellow-green late.
+function solvedColor(k, K) {
+  const t = K > 1 ? (k - 1) / (K - 1) : 0;
+  return `hsl(${140 - 75 * t}, ${55 + 15 * t}%, ${32 + 16 * t}%)`;
+}
+
+// -- live connection -------------------------------------------------------------------
+
+function connect() {
+  const conn = document.getElementById("conn");
+  const es = new EventSource("/api/events");
+  es.addEventListener("state", (e) => {
+    conn.dataset.state = "live"; conn.textContent = "live";
+    const state = JSON.parse(e.data);
+    S.runs.clear();
+    for (const v of state.runs) { colorOf(v.id); S.runs.set(v.id, v); }
+    if (!S.selected || !S.runs.has(S.selected)) S.selected = firstDetailed();
+    renderAll();
+    loadGrid();
+  });
+  es.onmessage = (e) => {
+    const msg = JSON.parse(e.data);
+    if (msg.type !== "run") return;
+    const v = msg.run;
+    const isNew = !S.runs.has(v.id);
+    colorOf(v.id);
+    S.runs.set(v.id, v);
+    document.getElementById("updated").textContent = "updated " + new Date().toLocaleTimeString();
+    if (isNew) { if (!S.selected) S.selected = firstDetailed(); renderAll(); loadGrid(); return; }
+    renderCard(v);
+    renderCharts();
+    if (v.id === S.selected) {
+      renderTable();
+      if (msg.grid_reset) scheduleGrid(); else applyCells(v.id, msg.cells);
+      if (S.episode && S.episode.run === v.id && msg.cells.some((c) => c[0] === S.episode.task && c[1] === S.episode.r)) {
+        openEpisode(S.episode.run, S.episode.task, S.episode.r, true);
+      }
+    }
+  };
+  es.onerror = () => { conn.dataset.state = "lost"; conn.textContent = "reconnecting…"; };
+}
+
+function firstDetailed() {
+  for (const v of S.runs.values()) if (v.report) return v.id;
+  return null;
+}
+
+// -- rendering -------------------------------------------------------------------------
+
+function renderAll() {
+  const cards = document.getElementById("cards");
+  cards.replaceChildren();
+  if (!S.runs.size) cards.append(el("p", { class: "muted", text: "no runs yet" }));
+  for (const v of S.runs.values()) renderCard(v);
+  renderCharts();
+  renderSelect();
+  renderTable();
+}
+
+function renderCard(v) {
+  const p = v.progress, t = v.totals;
+  const frac = p.episodes_total ? p.episodes_done / p.episodes_total : 0;
+  const rateWord = p.status === "running" ? "attempts/s" : "avg attempts/s";
+  const solvedRate = v.report ? v.report.overall.mean.success_at[v.report.max_attempts - 1] : null;
+  const card = el("div", {
+    class: "card" + (v.id === S.selected ? " selected" : ""), id: "card-" + v.id, "data-run": v.id,
+    style: { "--run-color": colorOf(v.id) },
+    onclick: () => { if (v.report) selectRun(v.id); },
+  },
+  el("h3", {}, el("span", { text: `${v.env} · ${v.label}` }), el("span", { class: "badge " + p.status, "data-field": "status", text: p.status + (p.loading ? " (loading)" : "") })),
+  el("div", { class: "path", text: v.path || v.name }),
+  el("div", { class: "bar" }, el("div", { style: { width: (100 * frac).toFixed(1) + "%" } })),
+  el("dl", { class: "kv" },
+    field("episodes", `${num(p.episodes_done)} / ${num(p.episodes_total)}`, "episodes_done", p.episodes_done),
+    field("attempts", num(p.attempts), "attempts", p.attempts),
+    field(rateWord, p.attempts_per_s === null || p.attempts_per_s === undefined ? "–" : num(p.attempts_per_s, 1), "attempts_per_s", p.attempts_per_s),
+    field("ETA", p.status === "running" ? duration(p.eta_s) : "–", "eta_s", p.eta_s),
+    field("solved", `${num(t.solved)}` + (solvedRate === null ? "" : ` (${pct(solvedRate)})`), "solved", t.solved),
+    field("invalid", num(t.invalid_attempts), "invalid_attempts", t.invalid_attempts),
+    field("model errors", num(t.model_errors), "model_errors", t.model_errors),
+    field("retries", num(t.retries), "retries", t.retries),
+    field("tokens in/out", `${num(t.input_tokens)} / ${num(t.output_tokens)}`, "input_tokens", t.input_tokens),
+    field("cost", "$" + num(t.cost_usd, 4), "cost_usd", t.cost_usd),
+  ),
+  v.note ? el("div", { class: "note muted", text: v.note }) : null,
+  ...(v.errors || []).map((e) => el("div", { class: "error", text: e })),
+  );
+  const old = document.getElementById("card-" + v.id);
+  if (old) old.replaceWith(card); else {
+    const cards = document.getElementById("cards");
+    if (cards.querySelector("p.muted")) cards.replaceChildren();
+    cards.append(card);
+  }
+}
+
+function field(name, text, key, value) {
+  return [el("dt", { text: name }), el("dd", { "data-field": key, "data-value": value === null || value === undefined ? "" : value, text })];
+}
+
+function renderSelect() {
+  const sel = document.getElementById("run-select");
+  sel.replaceChildren(...[...S.runs.values()].filter((v) => v.report).map((v) =>
+    el("option", { value: v.id, selected: v.id === S.selected, text: `${v.env} · ${v.label} · ${v.name}` })));
+  const v = S.runs.get(S.selected);
+  const groups = document.getElementById("group-select");
+  groups.replaceChildren(el("option", { value: "", text: "all" }),
+    ...((v && v.groups) || []).map((g) => el("option", { value: g, selected: g === S.group, text: g })));
+}
+
+function renderTable() {
+  const box = document.getElementById("table");
+  const v = S.runs.get(S.selected);
+  if (!v || !v.table) { box.replaceChildren(); return; }
+  const { header, rows } = v.table;
+  box.replaceChildren(el("table", { class: "report", "data-run": v.id },
+    el("thead", {}, el("tr", {}, header.map((h) => el("th", { text: h })))),
+    el("tbody", {}, rows.map((r) => el("tr", {}, r.map((c) => el("td", { text: c })))))));
+}
+
+// -- charts (inline SVG) ---------------------------------------------------------------
+
+function renderCharts() {
+  const box = document.getElementById("charts");
+  const views = [...S.runs.values()];
+  const charts = [];
+  for (const [kind, spec] of Object.entries(CHART_KINDS)) {
+    const series = views.filter((v) => v.curve && v.curve.kind === kind);
+    if (series.length) charts.push(lineChart(kind, spec, series));
+  }
+  const starred = views.filter((v) => v.stars);
+  if (starred.length) charts.push(starChart(starred));
+  if (!charts.length) charts.push(el("p", { class: "muted", text: "no records yet" }));
+  box.replaceChildren(...charts);
+}
+
+function lineChart(kind, spec, series) {
+  const W = 560, H = 300, L = 46, R = 14, T = 12, B = 40;
+  const shown = series.filter((v) => !S.hidden.has(v.id));
+  const xs = series.flatMap((v) => v.curve.x);
+  const x0 = Math.min(...xs), x1 = Math.max(...xs);
+  let top = 0;
+  for (const v of shown) v.curve.mean.forEach((m, i) => { top = Math.max(top, (m || 0) + (v.curve.std[i] || 0)); });
+  const ymax = [0.1, 0.2, 0.25, 0.5, 0.75, 1].find((y) => y >= top + 0.01) || 1;  // five round ticks
+  const X = (x) => L + (x1 === x0 ? (W - L - R) / 2 : ((x - x0) / (x1 - x0)) * (W - L - R));
+  const Y = (y) => T + (1 - y / ymax) * (H - T - B);
+  const svg = el("svg", { width: W, height: H, viewBox: `0 0 ${W} ${H}`, "data-kind": kind });
+  for (let i = 0; i <= 5; i++) {
+    const y = (ymax * i) / 5;
+    svg.append(el("line", { class: "gridline", x1: L, x2: W - R, y1: Y(y), y2: Y(y) }),
+      el("text", { x: L - 6, y: Y(y) + 4, "text-anchor": "end", text: Math.round(100 * y) + "%" }));
+  }
+  const ticks = [...new Set(xs)].sort((a, b) => a - b);
+  const step = Math.ceil(ticks.length / 16);
+  ticks.forEach((x, i) => { if (i % step === 0) svg.append(el("text", { x: X(x), y: H - B + 16, "text-anchor": "middle", text: x })); });
+  svg.append(el("line", { class: "axis", x1: L, x2: W - R, y1: Y(0), y2: Y(0) }),
+    el("line", { class: "axis", x1: L, x2: L, y1: T, y2: Y(0) }),
+    el("text", { x: (L + W - R) / 2, y: H - 6, "text-anchor": "middle", text: spec.x }));
+  for (const v of shown) {
+    const c = v.curve, color = colorOf(v.id);
+    const pts = c.x.map((x, i) => [x, c.mean[i] || 0, c.std[i] || 0]);
+    const band = pts.map(([x, m, s]) => `${X(x)},${Y(Math.min(ymax, m + s))}`)
+      .concat(pts.slice().reverse().map(([x, m, s]) => `${X(x)},${Y(Math.max(0, m - s))}`)).join(" ");
+    const g = el("g", { "data-run": v.id },
+      el("polygon", { points: band, fill: color, "fill-opacity": 0.12, stroke: "none" }),
+      el("polyline", { points: pts.map(([x, m]) => `${X(x)},${Y(m)}`).join(" "), fill: "none", stroke: color, "stroke-width": 2 }));
+    c.x.forEach((x, i) => g.append(el("circle", {
+      cx: X(x), cy: Y(c.mean[i] || 0), r: 3.5, fill: color, "data-x": x, "data-value": c.mean[i], "data-std": c.std[i],
+    }, el("title", { text: `${v.label} (${v.name}): ${spec.x.split(" ")[0]} ${x}: ${pct(c.mean[i])} ± ${pct(c.std[i])}` }))));
+    svg.append(g);
+  }
+  return el("div", { class: "chart", "data-kind": kind }, el("h3", { text: spec.title }), svg, legend(series));
+}
+
+function legend(series) {
+  return el("div", { class: "chart-legend" }, series.map((v) => el("span", {
+    class: S.hidden.has(v.id) ? "off" : "", "data-run": v.id, title: v.path,
+    onclick: () => { S.hidden.has(v.id) ? S.hidden.delete(v.id) : S.hidden.add(v.id); renderCharts(); },
+  }, el("i", { style: { background: colorOf(v.id) } }), `${v.env} · ${v.label} · ${v.name}`)));
+}
+
+function starChart(series) {
+  const W = 560, H = 300, L = 46, R = 14, T = 12, B = 40;
+  const shown = series.filter((v) => !S.hidden.has(v.id));
+  const levels = shown.map((v) => ["1", "2", "3"].reduce((a, k) => a + (v.stars.levels_with[k] || 0), 0));
+  const ymax = Math.max(1, ...levels);
+  const Y = (y) => T + (1 - y / ymax) * (H - T - B);
+  const bw = Math.min(70, (W - L - R) / Math.max(1, shown.length) - 16);
+  const svg = el("svg", { width: W, height: H, viewBox: `0 0 ${W} ${H}`, "data-kind": "stars" });
+  const step = Math.max(1, Math.ceil(ymax / 5));
+  for (let y = 0; y <= ymax; y += step) {
+    svg.append(el("line", { class: "gridline", x1: L, x2: W - R, y1: Y(y), y2: Y(y) }),
+      el("text", { x: L - 6, y: Y(y) + 4, "text-anchor": "end", text: y }));
+  }
+  svg.append(el("line", { class: "axis", x1: L, x2: W - R, y1: Y(0), y2: Y(0) }),
+    el("line", { class: "axis", x1: L, x2: L, y1: T, y2: Y(0) }),
+    el("text", { x: 4, y: T + 4, text: "levels" }));
+  shown.forEach((v, i) => {
+    const x = L + 12 + i * (bw + 16);
+    let base = 0;
+    const g = el("g", { "data-run": v.id });
+    ["1", "2", "3"].forEach((k, j) => {
+      const n = v.stars.levels_with[k] || 0;
+      g.append(el("rect", { x, y: Y(base + n), width: bw, height: Y(base) - Y(base + n), fill: colorOf(v.id), "fill-opacity": 0.35 + 0.3 * j, "data-stars": k, "data-value": n },
+        el("title", { text: `${v.label}: ${num(n, 1)} levels with ${k} star(s) (mean over runs)` })));
+      base += n;
+    });
+    g.append(el("text", { x: x + bw / 2, y: H - B + 16, "text-anchor": "middle", text: `${num(v.stars.mean_all, 2)} ★/level` }));
+    svg.append(g);
+  });
+  return el("div", { class: "chart", "data-kind": "stars" }, el("h3", { text: "Stars: levels finished with 1, 2, 3 stars (light to dark)" }), svg, legend(series));
+}
+
+// -- task grid -------------------------------------------------------------------------
+
+function selectRun(id) {
+  if (S.selected === id) return;
+  S.selected = id; S.page = 0; S.group = ""; S.grid = null;
+  for (const c of document.querySelectorAll(".card")) c.classList.toggle("selected", c.dataset.run === id);
+  renderSelect(); renderTable(); loadGrid();
+}
+
+function scheduleGrid() {
+  clearTimeout(S.gridTimer);
+  S.gridTimer = setTimeout(loadGrid, 300);
+}
+
+async function loadGrid() {
+  const id = S.selected;
+  if (!id) { document.getElementById("grid").replaceChildren(); return; }
+  const q = new URLSearchParams({ page: S.page, group: S.group });
+  const res = await fetch(`/api/runs/${id}/grid?${q}`);
+  if (!res.ok || id !== S.selected) return;
+  S.grid = await res.json();
+  S.page = S.grid.page;
+  renderGrid();
+}
+
+function renderGrid() {
+  const g = S.grid, box = document.getElementById("grid");
+  const [unit, K] = scale(g);
+  const tiles = [];
+  let group = null;
+  g.tasks.forEach(([task, grp], i) => {
+    if (!g.group && grp !== group) { group = grp; if (grp) tiles.push(el("h4", { text: grp })); }
+    tiles.push(el("div", { class: "tile" }, el("div", { class: "tid", title: task, text: task }),
+      el("div", { class: "cells" }, g.cells[i].map((c, r) => cellNode(g.run, task, r, c, g)))));
+  });
+  box.replaceChildren(...tiles);
+  const pager = document.getElementById("pager");
+  const first = g.page * g.page_size + 1, last = Math.min(g.tasks_total, (g.page + 1) * g.page_size);
+  pager.replaceChildren(
+    el("button", { type: "button", disabled: g.page === 0, onclick: () => { S.page--; loadGrid(); }, text: "‹" }),
+    `tasks ${first}–${last} of ${g.tasks_total} · ${g.runs} run(s) each`,
+    el("button", { type: "button", disabled: g.page >= g.pages - 1, onclick: () => { S.page++; loadGrid(); }, text: "›" }));
+  document.getElementById("legend").replaceChildren(
+    el("span", {}, el("span", { class: "cell", style: { background: solvedColor(1, K) }, text: "1" }), ` solved at ${unit} 1`),
+    K > 1 ? el("span", {}, el("span", { class: "cell", style: { background: solvedColor(K, K) }, text: K }), ` … at ${unit} ${K}`) : null,
+    el("span", {}, el("span", { class: "cell failed" }), " failed"),
+    el("span", {}, el("span", { class: "cell progress" }), " in progress"),
+    el("span", {}, el("span", { class: "cell pending" }), " not started"));
+}
+
+// What a solved cell's number and colour mean: the attempt it was solved at, or, with a
+// single attempt of many decisions, the decision.
+function scale(g) {
+  return g.k_max === 1 && g.max_steps > 1 ? ["decision", g.max_steps] : ["attempt", g.k_max];
+}
+
+// cell = [state, attempts, solved_at, invalid, stars, steps_to_solve]
+function cellNode(runId, task, r, cell, g) {
+  const [state, attempts, solvedAt, invalid, stars, steps] = cell;
+  const [unit, K] = scale(g);
+  const at = unit === "decision" ? steps : solvedAt;
+  const words = { solved: `solved at ${unit} ${at}`, failed: `failed (${attempts} attempt(s))`,
+    progress: `in progress (${attempts} attempt(s) so far)`, pending: "not started" }[state];
+  const node = el("button", {
+    type: "button", class: `cell ${state}`, "data-task": task, "data-r": r, "data-state": state,
+    "data-attempts": attempts, title: `${task} · run ${r}: ${words}${invalid ? `, ${invalid} invalid` : ""}${stars !== null ? `, ${stars}★` : ""}`,
+    text: state === "solved" ? (stars !== null && K === 1 ? stars + "★" : at) : "",
+    onclick: state === "pending" ? null : () => openEpisode(runId, task, r),
+  });
+  if (state === "solved") node.style.background = solvedColor(at, K);
+  return node;
+}
+
+function applyCells(runId, cells) {
+  const g = S.grid;
+  if (!g || g.run !== runId || !cells.length) return;
+  const row = new Map(g.tasks.map(([t], i) => [t, i]));
+  for (const [task, r, ...cell] of cells) {
+    const i = row.get(task);
+    if (i === undefined) continue;
+    g.cells[i][r] = cell;
+    const old = document.querySelector(`#grid .cell[data-task="${CSS.escape(task)}"][data-r="${r}"]`);
+    if (old) old.replaceWith(cellNode(runId, task, r, cell, g));
+  }
+}
+
+// -- episode view ----------------------------------------------------------------------
+
+async function openEpisode(runId, task, r, refresh = false) {
+  const modal = document.getElementById("episode");
+  S.episode = { run: runId, task, r };
+  if (!refresh) {
+    document.getElementById("episode-title").textContent = `${task} · run ${r}`;
+    document.getElementById("episode-body").replaceChildren(el("p", { class: "muted", text: "loading…" }));
+    modal.hidden = false;
+    history.replaceState(null, "", `#run=${runId}&task=${encodeURIComponent(task)}&r=${r}`);
+  }
+  const res = await fetch(`/api/runs/${runId}/episode?` + new URLSearchParams({ task, run: r }));
+  if (!res.ok) { document.getElementById("episode-body").replaceChildren(el("p", { class: "error", text: await res.text() })); return; }
+  const ep = await res.json();
+  if (!S.episode || S.episode.task !== task || S.episode.r !== r) return;
+  const [state, attempts, solvedAt] = ep.cell;
+  document.getElementById("episode-title").textContent =
+    `${ep.task} · run ${ep.run} · ${ep.env} · ${ep.label}` + (ep.group ? ` · ${ep.group}` : "");
+  const open = new Set([...document.querySelectorAll("#episode-body details.attempt[open]")].map((d) => d.dataset.attempt));
+  const body = [
+    el("p", {}, state === "solved" ? el("span", { class: "ok", text: `solved at attempt ${solvedAt}` })
+      : state === "failed" ? el("span", { class: "bad", text: `failed after ${attempts} attempt(s)` })
+      : el("span", { text: `${attempts} attempt(s) so far, not finished` }), ` · K = ${ep.k_max}, at most ${ep.max_steps} decision(s) per attempt`),
+    el("p", { class: "muted small", text: "Images: key frames and the history frames in the prompts are files of the run directory and are shown; the current observation a model was shown is not stored, and is marked so." }),
+  ];
+  ep.attempts.forEach((a, i) => body.push(attemptNode(ep, a, refresh ? open.has(String(a.attempt)) : i === ep.attempts.length - 1)));
+  document.getElementById("episode-body").replaceChildren(...body);
+}
+
+// Key frames belong to the decision their file name carries (r<run>_a<attempt>_s<step>_...).
+function framesOf(a, step) {
+  return a.key_frames.filter((f) => f.path.split("/").pop().includes(`_a${a.attempt}_s${step}_`));
+}
+
+function attemptNode(ep, a, isOpen) {
+  const tied = new Set(a.steps.flatMap((s) => framesOf(a, s.step)).map((f) => f.path));
+  const loose = a.key_frames.filter((f) => !tied.has(f.path));
+  const status = a.success ? el("span", { class: "ok", text: "solved" })
+    : a.invalid_reason ? el("span", { class: "bad", text: "invalid" }) : el("span", { class: "bad", text: "failed" });
+  const u = a.model_stats.usage;
+  return el("details", { class: "attempt", open: isOpen, "data-attempt": a.attempt },
+    el("summary", {}, `Attempt ${a.attempt}`, status, a.stars !== null ? `${a.stars}★` : null,
+      el("span", { class: "outcome", text: a.feedback })),
+    el("div", { class: "attempt-body" },
+      el("div", { class: "field", text: `${a.steps.length} decision(s) · env ${a.timing.env_s.toFixed(2)} s · model ${a.timing.model_s.toFixed(2)} s · tokens ${u.input_tokens}/${u.output_tokens} · $${u.cost_usd.toFixed(4)}` + (a.model_stats.retries ? ` · ${a.model_stats.retries} retries` : "") + (a.model_stats.model_errors ? ` · ${a.model_stats.model_errors} model errors` : "") }),
+      a.steps.map((s) => stepNode(ep, a, s)),
+      loose.length ? [el("div", { class: "field", text: "key frames" }), el("div", { class: "imgs" }, loose.map((f) => figure(ep.run_id, f.path, f.caption)))] : null));
+}
+
+function stepNode(ep, a, s) {
+  const frames = framesOf(a, s.step);
+  const prompt = ep.prompts[s.prompt];
+  const standIn = s.step > 1 ? framesOf(a, s.step - 1)[0] : null;
+  return el("div", { class: "step", "data-step": s.step },
+    el("h4", { text: `Decision ${s.step}` }),
+    el("div", { class: "prompt" },
+      el("div", { class: "field", text: "prompt" }),
+      prompt ? prompt.map((m) => messageNode(ep, m, standIn)) : el("p", { class: "error", text: `prompt ${s.prompt} is missing from the run directory` })),
+    el("div", {},
+      el("div", { class: "field", text: "raw reply" }), el("pre", { class: "reply", text: s.raw_output }),
+      s.prediction !== null ? [el("div", { class: "field", text: "prediction (WM)" }), el("pre", { class: "prediction", text: s.prediction })] : null,
+      s.action !== null ? [el("div", { class: "field", text: "parsed action" }), el("pre", { class: "action", text: s.action_text || JSON.stringify(s.action) })]
+        : [el("div", { class: "field", text: "invalid" }), el("pre", { class: "invalid bad", text: s.invalid_reason || "" })],
+      s.action !== null && s.invalid_reason ? el("pre", { class: "invalid bad", text: s.invalid_reason }) : null,
+      s.feedback ? [el("div", { class: "field", text: "outcome" }), el("pre", { text: s.feedback })] : null,
+      Object.keys(s.info || {}).length ? el("details", {}, el("summary", { class: "field", text: "info" }), el("pre", { text: JSON.stringify(s.info, null, 1) })) : null,
+      frames.length ? [el("div", { class: "field", text: "key frames" }), el("div", { class: "imgs" }, frames.map((f) => figure(ep.run_id, f.path, f.caption)))] : null));
+}
+
+function messageNode(ep, m, standIn) {
+  const parts = [];
+  let current = false;
+  for (const p of m.content) {
+    if (p.type === "text") {
+      if (p.text === "Current observation:") current = true;
+      parts.push(el("pre", { text: p.text }));
+    } else if (p.file) {
+      parts.push(figure(ep.run_id, p.file, p.caption));
+    } else {
+      parts.push(el("div", { class: "imgs" }, el("div", { class: "missing", "data-missing": p.name },
+        `image "${p.name}" (${current ? "current observation" : "earlier observation"}) — not stored in the run directory`),
+        current && standIn ? figure(ep.run_id, standIn.path, `closest stored image: the key frame after the previous decision (${standIn.caption}), not the image the model saw`) : null));
+    }
+  }
+  return el("details", { open: m.role !== "system" }, el("summary", { text: `${m.role} message` }), parts);
+}
+
+function figure(runId, path, caption) {
+  const url = `/files/${runId}/` + path.split("/").map(encodeURIComponent).join("/");
+  return el("figure", {}, el("a", { href: url, target: "_blank" },
+    el("img", { src: url, alt: caption, loading: "lazy" })), el("figcaption", { text: caption }));
+}
+
+function closeEpisode() {
+  document.getElementById("episode").hidden = true;
+  S.episode = null;
+  history.replaceState(null, "", location.pathname);
+}
+
+// -- wiring ----------------------------------------------------------------------------
+
+document.getElementById("episode-close").addEventListener("click", closeEpisode);
+document.getElementById("episode").addEventListener("click", (e) => { if (e.target.id === "episode") closeEpisode(); });
+document.addEventListener("keydown", (e) => { if (e.key === "Escape" && S.episode) closeEpisode(); });
+document.getElementById("run-select").addEventListener("change", (e) => selectRun(e.target.value));
+document.getElementById("group-select").addEventListener("change", (e) => { S.group = e.target.value; S.page = 0; loadGrid(); });
+
+const hash = new URLSearchParams(location.hash.slice(1));
+if (hash.get("run")) {
+  S.selected = hash.get("run");
+  if (hash.get("task")) openEpisode(hash.get("run"), hash.get("task"), Number(hash.get("r") || 0));
+}
+connect();

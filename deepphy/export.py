@@ -1,0 +1,282 @@
+"""`deepphy export`: the decisions of run directories as a Parquet dataset.
+
+One row per decision (step of an attempt) with its prompt (messages, images by relative
+path), raw reply, parsed action, validity and outcome; the key frames are copied next to
+it; README.md is the dataset card. Loadable with `pandas.read_parquet(DIR / DATA_FILE)`
+and `datasets.load_dataset("parquet", data_files=...)`, or `datasets.load_dataset(DIR)`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from deepphy.runs.records import AttemptRecord, KeyFrame
+from deepphy.runs.store import RunDirError, read_config, read_records
+
+DATA_FILE = "data/decisions.parquet"
+IMAGES = "images"
+MARKER = "<!-- deepphy export -->"  # identifies a directory an earlier export wrote
+_IMAGE = re.compile(r"^<image ([^:>]*): (.*)>$", re.S)  # prompt_as_json's image placeholder
+
+PART = pa.struct([
+    ("type", pa.string()),  # "text" or "image"
+    ("text", pa.string()),  # the text (type text)
+    ("image", pa.string()),  # relative path of the stored image, or null if it was not stored
+    ("name", pa.string()),  # the image's name in the prompt
+    ("caption", pa.string()),
+])
+MESSAGE = pa.struct([("role", pa.string()), ("content", pa.list_(PART))])
+
+# (name, type, meaning): the schema and the dataset card's field table.
+FIELDS: list[tuple[str, pa.DataType, str]] = [
+    ("source", pa.string(), "which run directory the row comes from (see Sources)"),
+    ("env", pa.string(), "environment"),
+    ("task", pa.string(), "task id"),
+    ("group", pa.string(), "task group (e.g. a size or a split); empty if none"),
+    ("run", pa.int32(), "repetition of the task (0-based)"),
+    ("attempt", pa.int32(), "attempt number (1-based); every attempt starts from the same initial state"),
+    ("step", pa.int32(), "decision number within the attempt (1-based)"),
+    ("model", pa.string(), "model name"),
+    ("format", pa.string(), "prompt format: vla (action only) or wm (prediction, then action)"),
+    ("seed", pa.int64(), "the run's seed"),
+    ("prompt_digest", pa.string(), "content hash of the prompt (prompts/<digest>.json in the run directory)"),
+    ("prompt", pa.list_(MESSAGE), "the chat messages; image parts carry a relative path when the image is stored"),
+    ("images", pa.list_(pa.string()), "relative paths of the prompt's stored images, in order"),
+    ("images_not_stored", pa.int32(), "images the model was shown that the run directory does not keep"),
+    ("raw_output", pa.string(), "the model's reply, verbatim"),
+    ("prediction", pa.string(), "the WM prediction (null for VLA)"),
+    ("action", pa.string(), "the parsed action as JSON (null if the reply did not parse)"),
+    ("action_text", pa.string(), "the action in canonical syntax (null if the reply did not parse)"),
+    ("valid", pa.bool_(), "whether the decision was a valid action"),
+    ("invalid_reason", pa.string(), "why it was invalid (null if valid)"),
+    ("feedback", pa.string(), "what the decision did, in words"),
+    ("info", pa.string(), "environment facts about the decision, as JSON"),
+    ("key_frames", pa.list_(pa.string()), "relative paths of the key frames after this decision"),
+    ("key_frame_captions", pa.list_(pa.string()), "their captions"),
+    ("final_step", pa.bool_(), "whether this decision ended the attempt"),
+    ("success", pa.bool_(), "whether the attempt solved the task"),
+    ("attempt_invalid_reason", pa.string(), "set when the attempt ended on an invalid action"),
+    ("outcome", pa.string(), "the attempt's outcome in words, as shown to the model in later attempts"),
+    ("stars", pa.int32(), "stars of the attempt (games only, else null)"),
+    ("score", pa.float64(), "score of the attempt, if the environment has one"),
+    ("attempt_input_tokens", pa.int64(), "input tokens of the whole attempt"),
+    ("attempt_output_tokens", pa.int64(), "output tokens of the whole attempt"),
+    ("attempt_cost_usd", pa.float64(), "model cost of the whole attempt"),
+]
+SCHEMA = pa.schema([(name, type_) for name, type_, _ in FIELDS])
+
+
+@dataclass
+class ExportSummary:
+    out: Path
+    rows: int
+    runs: int
+    images: int
+
+
+class _Images:
+    """Copies a run directory's frames into the dataset once each; returns relative paths."""
+
+    def __init__(self, run_dir: Path, staging: Path, source: str) -> None:
+        self.run_dir, self.staging, self.source = run_dir, staging, source
+        self.copied: dict[str, str | None] = {}
+
+    def add(self, rel: str) -> str | None:
+        """The dataset path of the run directory's file `rel` (copied), or None if absent."""
+        if rel not in self.copied:
+            src = self.run_dir / rel
+            if not src.is_file():
+                self.copied[rel] = None
+            else:
+                dest = Path(IMAGES) / self.source / Path(rel).relative_to("frames")
+                (self.staging / dest).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(src, self.staging / dest)
+                self.copied[rel] = dest.as_posix()
+        return self.copied[rel]
+
+
+def _frames_of_step(record: AttemptRecord, step: int, last: bool) -> list[KeyFrame]:
+    """Key frames are named r<run>_a<attempt>_s<step>_<name>.png; frames that carry no
+    step go with the attempt's last decision."""
+    tag = f"_a{record.attempt}_s{step}_"
+    mine = [f for f in record.key_frames if tag in f.path.rsplit("/", 1)[-1]]
+    if last:
+        tagged = {f.path for s in record.steps for f in record.key_frames
+                  if f"_a{record.attempt}_s{s.step}_" in f.path.rsplit("/", 1)[-1]}
+        mine += [f for f in record.key_frames if f.path not in tagged]
+    return mine
+
+
+def _prompt(run_dir: Path, task: str, digest: str, images: _Images, cache: dict) -> tuple[list, list[str], int]:
+    if digest not in cache:
+        try:
+            messages = json.loads((run_dir / "prompts" / f"{digest}.json").read_text())
+        except FileNotFoundError:
+            raise RunDirError(f"{run_dir}: prompt {digest} is missing (prompts/{digest}.json)") from None
+        out, stored, missing = [], [], 0
+        for m in messages:
+            parts = []
+            for text in m["content"]:
+                found = _IMAGE.match(text)
+                if found is None:
+                    parts.append({"type": "text", "text": text, "image": None, "name": None, "caption": None})
+                    continue
+                name, caption = found.groups()
+                path = images.add(f"frames/{task}/{name}") if "/" not in name and name not in ("", ".", "..") else None
+                parts.append({"type": "image", "text": None, "image": path, "name": name, "caption": caption})
+                if path:
+                    stored.append(path)
+                else:
+                    missing += 1
+            out.append({"role": m["role"], "content": parts})
+        cache[digest] = (out, stored, missing)
+    return cache[digest]
+
+
+def rows_of(run_dir: Path, source: str, staging: Path) -> tuple[list[dict[str, Any]], int]:
+    """The rows of one run directory (copying its images into `staging`) and the image count."""
+    images = _Images(run_dir, staging, source)
+    prompts: dict[str, Any] = {}
+    rows = []
+    records = sorted(read_records(run_dir), key=lambda r: (r.task, r.run, r.attempt))
+    for r in records:
+        for i, s in enumerate(r.steps):
+            last = i == len(r.steps) - 1
+            prompt, stored, missing = _prompt(run_dir, r.task, s.prompt, images, prompts)
+            frames = _frames_of_step(r, s.step, last)
+            usage = r.model_stats.usage
+            rows.append({
+                "source": source, "env": r.env, "task": r.task, "group": r.group, "run": r.run,
+                "attempt": r.attempt, "step": s.step, "model": r.model, "format": r.format, "seed": r.seed,
+                "prompt_digest": s.prompt, "prompt": prompt, "images": stored, "images_not_stored": missing,
+                "raw_output": s.raw_output, "prediction": s.prediction,
+                "action": None if s.action is None else json.dumps(s.action, sort_keys=True),
+                "action_text": s.action_text, "valid": s.invalid_reason is None, "invalid_reason": s.invalid_reason,
+                "feedback": s.feedback, "info": json.dumps(s.info, sort_keys=True),
+                "key_frames": [images.add(f.path) for f in frames], "key_frame_captions": [f.caption for f in frames],
+                "final_step": last, "success": r.success, "attempt_invalid_reason": r.invalid_reason,
+                "outcome": r.feedback, "stars": r.stars, "score": r.score,
+                "attempt_input_tokens": usage.input_tokens, "attempt_output_tokens": usage.output_tokens,
+                "attempt_cost_usd": usage.cost_usd,
+            })
+    return rows, sum(1 for p in images.copied.values() if p)
+
+
+def _source_names(run_dirs: Sequence[Path]) -> list[str]:
+    names: list[str] = []
+    for d in run_dirs:
+        base = re.sub(r"[^A-Za-z0-9._-]", "_", d.name) or "run"
+        name, n = base, 2
+        while name in names:
+            name, n = f"{base}-{n}", n + 1
+        names.append(name)
+    return names
+
+
+def export(run_dirs: Sequence[str | Path], out: str | Path) -> ExportSummary:
+    """Write the dataset to `out` (a new or empty directory, or an earlier export, which is
+    replaced only once the new one is complete)."""
+    out = Path(out)
+    dirs = [Path(d).resolve() for d in run_dirs]
+    if len(set(dirs)) != len(dirs):
+        raise RunDirError("the same run directory is given twice")
+    configs = [read_config(d) for d in dirs]  # a clear error before anything is written
+    if out.exists() and any(out.iterdir()) and not _is_export(out):
+        raise RunDirError(f"{out} is not empty and not an earlier export; choose a new --out")
+    staging = out.with_name(f".{out.name}.partial-{os.getpid()}")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir(parents=True)
+    try:
+        rows: list[dict[str, Any]] = []
+        sources = []
+        n_images = 0
+        for d, name, config in zip(dirs, _source_names(dirs), configs):
+            mine, images = rows_of(d, name, staging)
+            rows += mine
+            n_images += images
+            sources.append((name, config, len(mine)))
+        (staging / DATA_FILE).parent.mkdir(parents=True, exist_ok=True)
+        pq.write_table(pa.Table.from_pylist(rows, schema=SCHEMA), staging / DATA_FILE, compression="zstd")
+        (staging / "README.md").write_text(dataset_card(sources, len(rows), n_images))
+        if out.exists():
+            old = out.with_name(f".{out.name}.old-{os.getpid()}")
+            out.rename(old)
+            staging.rename(out)
+            shutil.rmtree(old)
+        else:
+            staging.rename(out)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return ExportSummary(out=out, rows=len(rows), runs=len(dirs), images=n_images)
+
+
+def _is_export(path: Path) -> bool:
+    card = path / "README.md"
+    return card.is_file() and MARKER in card.read_text(errors="replace")
+
+
+def dataset_card(sources: list[tuple[str, Any, int]], rows: int, images: int) -> str:
+    source_lines = "\n".join(
+        f"| `{name}` | {c.env} | {c.model} | {c.format.value} | {c.runs} | {c.seed} | "
+        f"`{json.dumps(c.env_options, sort_keys=True)}` | {n} |"
+        for name, c, n in sources
+    )
+    field_lines = "\n".join(f"| `{name}` | `{type_}` | {meaning} |" for name, type_, meaning in FIELDS)
+    return f"""---
+configs:
+- config_name: default
+  data_files: {DATA_FILE}
+---
+{MARKER}
+# deepphy trajectories
+
+Decisions of vision-language models (or of the MOCK random baseline) acting in
+interactive physics environments, exported by `deepphy export` from deepphy run
+directories. One row per decision: {rows} rows, {images} image files.
+
+An attempt is one try at a task from its initial state; before each attempt the model
+sees its earlier failed attempts. In-advance environments (PHYRE, I-PHYRE) take one
+decision per attempt; on-the-fly ones (Pooltool, Kinetix) several. `success`,
+`outcome`, `stars` and the `attempt_*` columns describe the whole attempt and repeat on
+each of its decisions.
+
+## Sources
+
+| source | env | model | format | runs | seed | env options | rows |
+|---|---|---|---|---|---|---|---|
+{source_lines}
+
+## Fields
+
+| field | type | meaning |
+|---|---|---|
+{field_lines}
+
+## Images
+
+`{IMAGES}/<source>/<task>/<file>.png`, referenced by relative path from `key_frames` and
+from the image parts of `prompt` (and listed in `images`). The run directory stores the
+key frames (what happened after a decision), which are also the history images of later
+prompts. The current observation shown with each prompt is not stored by deepphy: its
+prompt part has `image = null` (with its name and caption), counted in `images_not_stored`.
+
+## Loading
+
+```python
+import pandas as pd
+df = pd.read_parquet("{DATA_FILE}")
+
+import datasets
+ds = datasets.load_dataset("parquet", data_files="{DATA_FILE}")["train"]
+```
+"""

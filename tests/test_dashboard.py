@@ -1,0 +1,294 @@
+"""The dashboard's server side: tailing a run directory, the figures (from the report code),
+the grid and episodes, the HTTP API and its live Server-Sent Events. The page itself is
+tested in a real browser in test_dashboard_browser.py."""
+
+import asyncio
+import json
+import socket
+import time
+
+import pytest
+from aiohttp.test_utils import TestClient, TestServer
+
+from dashboard_support import append, copy_run, mock_run, synthetic_run
+from deepphy.cli import main
+from deepphy.dashboard.server import Dashboard, make_app
+from deepphy.dashboard.source import RunSource, writer_holds_lock
+from deepphy.metrics.report import report_of, table
+from deepphy.runs.store import ATTEMPTS, RunStore, read_config, read_records
+
+
+@pytest.fixture(scope="module")
+def run_dir(ray_cluster, tmp_path_factory):
+    return mock_run(tmp_path_factory)
+
+
+def loaded(path) -> RunSource:
+    source = RunSource(path)
+    while source.poll() or source.loading:
+        pass
+    return source
+
+
+def test_tailing_consumes_whole_lines_only(run_dir, tmp_path):
+    copy = tmp_path / "copy"
+    log = copy_run(run_dir, copy, lines=10, torn=37)
+    source = RunSource(copy)
+    changed = source.poll()
+    assert len(source.records) == 10 and source.offset == sum(len(line) + 1 for line in log[:10])
+    assert changed == {(r.task, r.run) for r in source.records}
+    assert source.poll() == set()  # nothing new: the torn line stays unread
+    append(copy, [log[10][37:], *log[11:]])  # the writer finishes its line, then more
+
+    changed = source.poll()
+    assert len(source.records) == len(log) and changed
+    assert source.report() == report_of(run_dir)  # the same report as `deepphy report --json`
+    append(copy, [b'{"env": "iphyre", "task": "support"}'])  # not a record: reported, skipped
+    assert source.poll() == set() and len(source.records) == len(log)
+    assert len(source.errors) == 1 and "is not a valid attempt record" in source.view()["errors"][0]
+
+
+def test_view_numbers_are_the_report(run_dir):
+    source = loaded(run_dir)
+    report = report_of(run_dir)
+    view = source.view()
+    assert view["report"] == report
+    header, rows = table([report])
+    assert view["table"] == {"header": header, "rows": rows}
+    per_run = report["overall"]["per_run"]
+    for key in ("solved", "attempts", "invalid_attempts", "model_errors", "retries", "input_tokens", "cost_usd"):
+        assert view["totals"][key] == sum(r[key] for r in per_run)
+    assert view["curve"] == {"kind": "attempts", "x": list(range(1, 11)),
+                             "mean": report["overall"]["mean"]["success_at"], "std": report["overall"]["std"]["success_at"]}
+    p = view["progress"]
+    assert p["status"] == "complete" and p["episodes_done"] == p["episodes_total"] == 12 and p["eta_s"] is None
+    assert p["attempts"] == len(read_records(run_dir)) and p["attempts_per_s"] > 0
+
+
+def test_single_attempt_runs_get_a_per_decision_curve(tmp_path):
+    kin = loaded(synthetic_run(tmp_path / "kin", limit=6, max_steps=6))
+    report = kin.report()
+    curve = kin.view()["curve"]
+    assert curve["kind"] == "decisions" and curve["x"] == list(range(1, kin.max_steps + 1))
+    assert curve["mean"] == sorted(curve["mean"])  # cumulative
+    assert curve["mean"][-1] == pytest.approx(report["overall"]["mean"]["success_at"][0])
+    pool = loaded(synthetic_run(tmp_path / "pool", env="pooltool", limit=6, max_steps=15, p_success=0.6))
+    m = pool.report()["overall"]["mean"]["success_within_steps"]
+    assert pool.view()["curve"]["x"] == [int(k) for k in m] and pool.view()["curve"]["mean"] == list(m.values())
+
+
+def test_grid_pages_groups_and_cells(run_dir, tmp_path):
+    source = loaded(run_dir)
+    records = read_records(run_dir)
+    grid = source.grid(page=0, page_size=4)
+    assert grid["pages"] == 2 and [t for t, _ in grid["tasks"]] == ["support", "hinder", "direction", "hole"]
+    assert source.grid(page=1, page_size=4)["tasks"][0][0] == "spring_flick"
+    assert source.grid(page=9, page_size=4)["page"] == 1  # clamped
+    basic = source.grid(group="basic")
+    assert {g for _, g in basic["tasks"]} == {"basic"} and basic["tasks_total"] == 4
+    for (task, _), cells in zip(grid["tasks"], grid["cells"]):
+        for run, (state, attempts, solved_at, invalid, stars, steps) in enumerate(cells):
+            mine = [r for r in records if (r.task, r.run) == (task, run)]
+            assert attempts == len(mine) and invalid == sum(r.invalid for r in mine)
+            solved = [r.attempt for r in mine if r.success]
+            assert state == ("solved" if solved else "failed") and solved_at == (solved[0] if solved else None)
+    # an episode cut short reads as in progress; one never started as pending
+    copy = tmp_path / "copy"
+    log = copy_run(run_dir, copy, lines=0)
+    first = json.loads(log[0])
+    append(copy, [log[0]])
+    partial = loaded(copy)
+    cell = partial.cells({(first["task"], first["run"])})[0]
+    assert cell[2] == ("solved" if first["success"] else "progress")
+    assert sum(c[0] == "pending" for cells in partial.grid()["cells"] for c in cells) == 6 * 2 - 1
+
+
+def test_episode_shows_stored_images_and_marks_the_rest(run_dir):
+    source = loaded(run_dir)
+    records = read_records(run_dir)
+    r = next(r for r in records if r.attempt == 3)
+    ep = source.episode(r.task, r.run)
+    assert [a["attempt"] for a in ep["attempts"]][:3] == [1, 2, 3]
+    third = ep["attempts"][2]
+    assert third["steps"][0]["raw_output"] == r.steps[0].raw_output
+    parts = [p for m in ep["prompts"][r.steps[0].prompt] for p in m["content"] if p["type"] == "image"]
+    stored = [p["file"] for p in parts if p["file"]]
+    # attempt 3 was shown the key frames of attempts 1 and 2, which are files; the current
+    # observation's images are not stored
+    assert stored == [f.path for a in records if (a.task, a.run) == (r.task, r.run) and a.attempt < 3 for f in a.key_frames]
+    assert all(source.frame_path(p) for p in stored)
+    assert [p["name"] for p in parts if not p["file"]] == ["scene", "annotated"]
+    with pytest.raises(KeyError):
+        source.episode("nosuch", 0)
+
+
+def test_only_frames_are_served(run_dir):
+    source = loaded(run_dir)
+    frame = read_records(run_dir)[0].key_frames[0].path
+    assert source.frame_path(frame) == (run_dir / frame).resolve()
+    for bad in ("config.json", "attempts.jsonl", f"{frame}/../../../config.json", "frames/../config.json",
+                "../../etc/passwd", "/etc/passwd", "frames/nosuch.png"):
+        assert source.frame_path(bad) is None, bad
+
+
+def test_a_writing_run_is_detected_without_taking_its_lock(run_dir, tmp_path):
+    copy = tmp_path / "copy"
+    copy_run(run_dir, copy, lines=3)
+    assert writer_holds_lock(copy) is False
+    store = RunStore.create_or_resume(copy, read_config(copy))
+    try:
+        assert writer_holds_lock(copy) is True
+        assert loaded(copy).view()["progress"]["status"] == "running"
+    finally:
+        store.close()
+    assert writer_holds_lock(copy) is False
+    assert loaded(copy).view()["progress"]["status"] == "incomplete"
+
+
+def test_a_replaced_log_is_read_again(run_dir, tmp_path):
+    copy = tmp_path / "copy"
+    log = copy_run(run_dir, copy, lines=20)
+    source = loaded(copy)
+    (copy / ATTEMPTS).write_bytes(b"".join(line + b"\n" for line in log[:5]))  # shorter: a new log
+    assert source.poll() is None and len(source.records) == 5
+
+
+def test_http_api_and_live_events(run_dir, tmp_path):
+    copy = tmp_path / "copy"
+    log = copy_run(run_dir, copy, lines=30)
+
+    async def scenario():
+        source = RunSource(copy)
+        dashboard = Dashboard([source], poll_s=0.1)
+        async with TestClient(TestServer(make_app(dashboard))) as client:
+            page = await client.get("/")
+            assert page.status == 200 and "app.js" in await page.text()
+            events = await client.get("/api/events")
+            first = await _next_event(events)
+            assert first[0] == "state"
+            while not (await (await client.get("/api/state")).json())["runs"]:
+                await asyncio.sleep(0.05)
+            state = await (await client.get("/api/state")).json()
+            assert state["runs"][0]["progress"]["attempts"] == 30
+            report = await (await client.get(f"/api/runs/{source.id}/report")).json()
+            assert report == report_of(copy)
+            grid = await (await client.get(f"/api/runs/{source.id}/grid?page=0")).json()
+            assert len(grid["tasks"]) == 6
+            frame = read_records(copy)[0].key_frames[0].path
+            assert (await client.get(f"/files/{source.id}/{frame}")).status == 200
+            assert (await client.get(f"/files/{source.id}/frames/..%2Fconfig.json")).status == 404
+            assert (await client.get(f"/files/{source.id}/config.json")).status == 404
+            assert (await client.get("/api/runs/nosuch/report")).status == 404
+            assert (await client.get(f"/api/runs/{source.id}/episode?task=nosuch&run=0")).status == 404
+            assert (await client.get(f"/api/runs/{source.id}/grid?page=x")).status == 400
+
+            # a new record reaches the open event stream within a poll or two
+            delays = []
+            for line in log[30:33]:
+                t0 = time.monotonic()
+                append(copy, [line])
+                record = json.loads(line)
+                while True:
+                    name, data = await asyncio.wait_for(_next_event(events), 10)
+                    if name == "message" and data["run"]["progress"]["attempts"] > 30 + len(delays):
+                        break
+                delays.append(time.monotonic() - t0)
+                assert [record["task"], record["run"]] in [c[:2] for c in data["cells"]]
+            assert max(delays) < 2.0, delays
+            events.close()
+            return delays
+
+    delays = asyncio.run(scenario())
+    print(f"SSE update delay after an appended record: {', '.join(f'{d * 1000:.0f} ms' for d in delays)}")
+
+
+async def _next_event(response):
+    """(event name, data) of the next Server-Sent Event, skipping heartbeats."""
+    name, data = "message", None
+    while True:
+        line = (await response.content.readline()).decode().rstrip("\n")
+        if line.startswith("event: "):
+            name = line[7:]
+        elif line.startswith("data: "):
+            data = json.loads(line[6:])
+        elif line == "" and data is not None:
+            return name, data
+
+
+def test_cli_errors(tmp_path, capsys):
+    assert main(["dashboard"]) == 2
+    assert "give run directories" in capsys.readouterr().err
+    (tmp_path / "notes.txt").write_text("")
+    assert main(["dashboard", str(tmp_path / "notes.txt")]) == 2
+    assert "is not a directory" in capsys.readouterr().err
+    bad = tmp_path / "runs" / "bad"
+    bad.mkdir(parents=True)
+    (bad / "config.json").write_text('{"env": "nosuch"}')
+    assert main(["dashboard", str(tmp_path / "runs")]) == 2
+    assert "is not a valid run config" in capsys.readouterr().err
+
+
+def test_runs_that_appear_later_join(run_dir, tmp_path):
+    """A directory given before any run is in it shows a placeholder, then the run."""
+    root = tmp_path / "runs"
+
+    async def scenario():
+        dashboard = Dashboard([], roots=[root])
+        queue = asyncio.Queue()
+        dashboard.clients.add(queue)
+        await dashboard._scan_roots()
+        (waiting,) = dashboard.views.values()
+        assert waiting["waiting"] and waiting["progress"]["status"] == "waiting"
+        copy_run(run_dir, root / "later", lines=12)
+        await dashboard._scan_roots()
+        (source,) = dashboard.sources.values()
+        assert source.path == (root / "later").resolve() and not dashboard.views
+        await dashboard._poll(source)
+        assert dashboard.views[source.id]["progress"]["attempts"] == 12
+        sent = [queue.get_nowait() for _ in range(queue.qsize())]
+        assert [m.split(b"\n", 1)[0] for m in sent] == [b"event: message", b"event: state", b"event: message"]
+        dashboard.executor.shutdown()
+
+    asyncio.run(scenario())
+
+
+def test_cli_port_in_use(run_dir, capsys):
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        assert main(["dashboard", str(run_dir), "--port", str(port)]) == 2
+    assert f"cannot listen on 127.0.0.1:{port}" in capsys.readouterr().err
+
+
+def test_live_runs_from_metrics_snapshots(run_dir):
+    """What the Ray loop does with the metrics actors' snapshots (`deepphy watch --json`
+    prints the same objects): a readable run directory becomes a full run; an unreadable
+    one shows the snapshot, and is marked ended once its actor is gone."""
+    config = read_config(run_dir).model_dump(mode="json")
+    snap = {"episodes_done": 3, "episodes_total": 12, "attempts": 9, "attempts_per_s": 2.5, "solved": 2,
+            "invalid_attempts": 1, "model_errors": 0, "retries": 4, "input_tokens": 10, "output_tokens": 2,
+            "cost_usd": 0.5, "elapsed_s": 6.0, "config": config}
+
+    async def scenario():
+        dashboard = Dashboard([])
+        queue = asyncio.Queue()
+        dashboard.clients.add(queue)
+        await dashboard._merge_live({"aa11": {**snap, "run_dir": str(run_dir)},
+                                     "bb22": {**snap, "run_dir": "/elsewhere/run"}})
+        assert [s.path for s in dashboard.sources.values()] == [run_dir.resolve()]
+        source = next(iter(dashboard.sources.values()))
+        assert source.snapshot["attempts"] == 9
+        view = dashboard.views["ray-bb22"]
+        assert view["live_only"] and view["progress"]["status"] == "running"
+        assert view["progress"]["eta_s"] == pytest.approx((12 - 3) / (3 / 6.0))
+        assert view["totals"]["retries"] == 4 and view["label"] == "mock VLA" and view["env"] == "iphyre"
+        await dashboard._merge_live({})
+        assert dashboard.views["ray-bb22"]["progress"]["status"] == "ended" and source.snapshot is None
+        await dashboard._poll(source)  # the directory-backed run is read like any other
+        assert dashboard.views[source.id]["report"] == report_of(run_dir)
+        sent = [queue.get_nowait() for _ in range(queue.qsize())]
+        assert len(sent) == 3 and all(m.startswith(b"event: message\n") for m in sent)
+        dashboard.executor.shutdown()
+
+    asyncio.run(scenario())

@@ -1,0 +1,262 @@
+"""`deepphy dashboard` in a real headless browser: Debian's chromium driven by Playwright.
+
+The server is the real CLI in a subprocess; the run directories are real MOCK runs. The
+page must load without console errors, show exactly the numbers of `deepphy report
+--json`, and show a record appended to a run within a few seconds, without a reload.
+Screenshots go to $DEEPPHY_SCREENSHOTS (default: the test's tmp directory).
+"""
+
+import json
+import os
+import re
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from dashboard_support import IPHYRE_TASKS, append, copy_run, mock_run
+from deepphy.config import RunConfig, RuntimeOptions
+from deepphy.dashboard.source import run_id
+from deepphy.metrics.report import report_of, table
+from deepphy.runner import evaluate
+from deepphy.runs.store import read_records
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+UPDATE_LIMIT_S = 5.0
+
+pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"needs Debian's chromium at {CHROMIUM}")
+
+
+@pytest.fixture(scope="module")
+def runs(ray_cluster, tmp_path_factory):
+    return mock_run(tmp_path_factory), mock_run(tmp_path_factory, fmt="wm")
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory):
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        context = p.chromium.launch_persistent_context(
+            str(tmp_path_factory.mktemp("chromium-profile")), executable_path=CHROMIUM, headless=True,
+            args=CHROMIUM_ARGS, viewport={"width": 1400, "height": 1000})
+        yield context
+        context.close()
+
+
+@pytest.fixture
+def screenshots(tmp_path):
+    out = Path(os.environ.get("DEEPPHY_SCREENSHOTS", tmp_path))
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+class DashboardProcess:
+    """`deepphy dashboard ... --port 0` in a subprocess; its URL read from its first line."""
+
+    def __init__(self, *args: str) -> None:
+        self.proc = subprocess.Popen([sys.executable, "-m", "deepphy.cli", "dashboard", *args, "--port", "0"],
+                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        found = {}
+        reader = threading.Thread(target=lambda: found.update(line=self.proc.stdout.readline()), daemon=True)
+        reader.start()
+        reader.join(120)
+        match = re.search(r"http://127\.0\.0\.1:\d+/", found.get("line", ""))
+        if not match:
+            self.close()
+            raise AssertionError(f"the dashboard did not start: {found.get('line')!r}")
+        self.url = match.group(0)
+
+    def close(self) -> None:
+        self.proc.terminate()
+        try:
+            self.proc.wait(10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+
+
+@pytest.fixture
+def serve():
+    """Starts dashboards; stops them after the pages are closed (request it before open_page)."""
+    servers = []
+
+    def start(*args: str) -> DashboardProcess:
+        servers.append(DashboardProcess(*args))
+        return servers[-1]
+
+    yield start
+    for server in servers:
+        server.close()
+
+
+@pytest.fixture
+def open_page(browser):
+    """Opens a URL; collects console errors and uncaught exceptions, which fail the test."""
+    pages, errors = [], []
+
+    def opener(url):
+        page = browser.new_page()
+        page.on("console", lambda m: errors.append(f"console {m.type}: {m.text}") if m.type == "error" else None)
+        page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
+        page.goto(url)
+        pages.append(page)
+        return page
+
+    yield opener
+    for page in pages:
+        page.close()
+    assert not errors, errors
+
+
+def report_json(run_dir) -> dict:
+    """What `deepphy report --json` prints."""
+    out = subprocess.run([sys.executable, "-m", "deepphy.cli", "report", "--json", str(run_dir)],
+                         capture_output=True, text=True, check=True).stdout
+    return json.loads(out)
+
+
+def card_values(page, run_id) -> dict:
+    return page.eval_on_selector_all(
+        f'.card[data-run="{run_id}"] dd[data-field]',
+        "nodes => Object.fromEntries(nodes.map(n => [n.dataset.field, n.dataset.value]))")
+
+
+def run_id_of(page, path) -> str:
+    return page.eval_on_selector_all(".card", f"""cards => cards.find(c =>
+        c.querySelector('.path').textContent === {json.dumps(str(Path(path).resolve()))}).dataset.run""")
+
+
+def assert_page_shows(page, run_dir):
+    """The card, the curve and the table of `run_dir` equal `deepphy report --json`."""
+    report = report_json(run_dir)
+    run_id = run_id_of(page, run_dir)
+    per_run = report["overall"]["per_run"]
+    values = card_values(page, run_id)
+    for field in ("attempts", "solved", "invalid_attempts", "model_errors", "retries", "input_tokens"):
+        assert float(values[field]) == sum(r[field] for r in per_run), field
+    assert float(values["cost_usd"]) == pytest.approx(sum(r["cost_usd"] for r in per_run))
+    assert int(values["episodes_done"]) == sum(r["tasks"] - r["unfinished"] for r in per_run)
+    points = page.eval_on_selector_all(f'svg g[data-run="{run_id}"] circle',
+                                       "cs => cs.map(c => [Number(c.dataset.x), Number(c.dataset.value)])")
+    mean = report["overall"]["mean"]["success_at"]
+    assert points == [[k + 1, v] for k, v in enumerate(mean)]
+    page.select_option("#run-select", run_id)
+    page.wait_for_selector(f'table.report[data-run="{run_id}"]')
+    cells = page.eval_on_selector_all("table.report tr", "rows => rows.map(r => [...r.children].map(c => c.textContent))")
+    header, rows = table([report])
+    assert cells == [header, *rows]
+
+
+def test_page_shows_the_report_of_finished_runs(runs, serve, open_page, screenshots):
+    server = serve(*map(str, runs))
+    page = open_page(server.url)
+    page.wait_for_selector("#grid .cell")
+    page.wait_for_function("document.querySelectorAll('.card').length === 2")
+    for run_dir in runs:
+        assert_page_shows(page, run_dir)
+    page.select_option("#run-select", run_id_of(page, runs[0]))
+    page.wait_for_selector("#grid .cell")
+    # the grid: one cell per (task, run), states from the records
+    states = page.eval_on_selector_all("#grid .cell", "cs => cs.map(c => [c.dataset.task, Number(c.dataset.r), c.dataset.state])")
+    records = read_records(runs[0])
+    expected = []
+    for task in IPHYRE_TASKS:
+        for run in range(2):
+            solved = any(r.success for r in records if (r.task, r.run) == (task, run))
+            expected.append([task, run, "solved" if solved else "failed"])
+    assert states == expected
+    assert page.inner_text(f'.card[data-run="{run_id_of(page, runs[0])}"] [data-field=status]') == "complete"
+    page.screenshot(path=str(screenshots / "dashboard_finished.png"), full_page=True)
+
+
+def test_episode_view_shows_prompts_replies_and_frames(runs, serve, open_page, screenshots):
+    server = serve(*map(str, runs))
+    page = open_page(server.url)
+    records = read_records(runs[0])
+    later = next(r for r in records if r.attempt >= 2)
+    page.click(f'#grid .cell[data-task="{later.task}"][data-r="{later.run}"]')
+    page.wait_for_selector("#episode .attempt")
+    attempts = [r for r in records if (r.task, r.run) == (later.task, later.run)]
+    assert page.eval_on_selector_all("#episode details.attempt", "ds => ds.length") == len(attempts)
+    # Open attempt 2 (setting `open` rather than clicking its summary, which toggles: on a
+    # slow machine a click could land while the view is still being drawn).
+    page.eval_on_selector('#episode details.attempt[data-attempt="2"]', "d => { d.open = true; }")
+    replies = page.eval_on_selector_all("#episode pre.reply", "ps => ps.map(p => p.textContent)")
+    assert sorted(replies) == sorted(r.steps[0].raw_output for r in attempts)
+    # attempt 2's prompt shows attempt 1's key frame (a file) and marks the current
+    # observation as not stored
+    second = page.locator('#episode details.attempt[data-attempt="2"]')
+    frame = attempts[0].key_frames[0].path
+    img = second.locator(f'.prompt img[src$="{frame}"]')
+    img.wait_for()
+    page.wait_for_function("img => img.complete && img.naturalWidth > 0", arg=img.element_handle())
+    assert second.locator(".missing").count() == 2  # scene and annotated
+    assert "#run=" in page.url and "task=" in page.url
+    page.screenshot(path=str(screenshots / "dashboard_episode.png"))
+    page.keyboard.press("Escape")
+    assert page.locator("#episode").is_hidden()
+
+    # a link to an episode opens it; a WM run's episode shows its predictions
+    wm = read_records(runs[1])
+    page = open_page(f"{server.url}#run={run_id(runs[1].resolve())}&task={wm[0].task}&r={wm[0].run}")
+    page.wait_for_selector("#episode .attempt")
+    mine = [r for r in wm if (r.task, r.run) == (wm[0].task, wm[0].run)]
+    predictions = page.eval_on_selector_all("#episode pre.prediction", "ps => ps.map(p => p.textContent)")
+    assert sorted(predictions) == sorted(r.steps[0].prediction for r in mine) and predictions
+
+
+def test_records_appended_to_a_run_appear_without_reload(runs, serve, open_page, screenshots, tmp_path):
+    copy = tmp_path / "live"
+    log = copy_run(runs[0], copy, lines=20)
+    server = serve(str(copy))
+    page = open_page(server.url)
+    page.wait_for_selector("#grid .cell")
+    run_id = run_id_of(page, copy)
+    page.evaluate("window.__notReloaded = true")
+    attempts = f'.card[data-run="{run_id}"] dd[data-field=attempts]'
+    assert page.get_attribute(attempts, "data-value") == "20"
+    delays = []
+    for n in range(21, 27):
+        line = log[n - 1]
+        record = json.loads(line)
+        t0 = time.monotonic()
+        append(copy, [line])
+        page.wait_for_selector(f'{attempts}[data-value="{n}"]', timeout=UPDATE_LIMIT_S * 1000)
+        delays.append(time.monotonic() - t0)
+        cell = page.get_attribute(f'#grid .cell[data-task="{record["task"]}"][data-r="{record["run"]}"]', "data-attempts")
+        assert int(cell) == record["attempt"]  # the grid follows too
+    print(f"page update delay after an appended record: {', '.join(f'{d * 1000:.0f} ms' for d in delays)}")
+    assert page.evaluate("window.__notReloaded") is True
+    page.screenshot(path=str(screenshots / "dashboard_live.png"), full_page=True)
+    append(copy, log[26:])
+    page.wait_for_selector(f'{attempts}[data-value="{len(log)}"]', timeout=UPDATE_LIMIT_S * 1000)
+    page.wait_for_function(f'document.querySelector(\'.card[data-run="{run_id}"] [data-field=status]\').textContent === "complete"')
+    assert_page_shows(page, copy)
+    assert report_of(copy) == report_of(runs[0])
+
+
+@pytest.mark.slow
+def test_a_live_evaluation_found_on_the_cluster(ray_cluster, serve, open_page, screenshots, tmp_path):
+    """No run directory given: the dashboard finds the run by its metrics actor on the
+    cluster, follows it while it runs, and ends with the report's numbers."""
+    out = tmp_path / "live-eval"
+    config = RunConfig(env="iphyre", model="mock", runs=3, seed=11)
+    server = serve("--address", ray_cluster)
+    thread = threading.Thread(target=evaluate, args=(config, out, RuntimeOptions(progress=False, env_workers=2)))
+    try:
+        page = open_page(server.url)
+        thread.start()
+        page.wait_for_selector(".card .badge.running", timeout=120_000)
+        page.wait_for_selector("#grid .cell.solved", timeout=120_000)
+        page.screenshot(path=str(screenshots / "dashboard_cluster_running.png"), full_page=True)
+        thread.join(600)
+        assert not thread.is_alive()
+        page.wait_for_selector(".card .badge.complete", timeout=30_000)
+        assert_page_shows(page, out)
+    finally:
+        thread.join(600)
