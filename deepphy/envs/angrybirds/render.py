@@ -201,9 +201,10 @@ def render(level: Level, poses: Sequence[Pose], *, waiting: Sequence[str] = (), 
         cv2.polylines(img, [poly], True, PLATFORM_EDGE, 2, cv2.LINE_AA, _SHIFT)
     _draw_trails(img, trails)
     _sling_arm(img, 0.18, SLING_DARK)  # back arm
-    for k, kind in enumerate(waiting[1:]):  # the queue, next bird nearest the slingshot
-        r = C.BIRD_RADIUS[kind]
-        draw_bird(img, kind, C.SLING_X - 0.55 - 0.5 * k, C.GROUND_Y + r)
+    queue = waiting[1:]  # next bird nearest the slingshot; a long queue closes up to stay in view
+    gap = min(0.5, (C.SLING_X - 0.55 - 0.25) / max(len(queue) - 1, 1))
+    for k, kind in reversed(list(enumerate(queue))):  # the nearest drawn last, on top
+        draw_bird(img, kind, C.SLING_X - 0.55 - gap * k, C.GROUND_Y + C.BIRD_RADIUS[kind])
     if waiting:
         draw_bird(img, waiting[0], C.SLING_X, C.SLING_Y)
     for pose in poses:
@@ -217,8 +218,13 @@ def render(level: Level, poses: Sequence[Pose], *, waiting: Sequence[str] = (), 
         else:
             draw_bird(img, pose.thing.bird, pose.x, pose.y, 0.0)
     _sling_arm(img, -0.18, SLING)  # front arm
-    for x, y, radius in blasts:
-        cx, cy = to_px(x, y)
-        cv2.circle(img, (round(cx), round(cy)), round(radius * SCALE), BLAST, 3, cv2.LINE_AA)
-        cv2.circle(img, (round(cx), round(cy)), round(radius * SCALE * 0.4), BLAST, -1, cv2.LINE_AA)
+    if blasts:  # a translucent flash over the blast radius, so what it hits stays visible
+        flash = img.copy()
+        for x, y, radius in blasts:
+            cx, cy = to_px(x, y)
+            cv2.circle(flash, (round(cx), round(cy)), round(radius * SCALE), BLAST, -1, cv2.LINE_AA)
+        img = cv2.addWeighted(flash, 0.45, img, 0.55, 0.0)
+        for x, y, radius in blasts:
+            cx, cy = to_px(x, y)
+            cv2.circle(img, (round(cx), round(cy)), round(radius * SCALE), BLAST, 2, cv2.LINE_AA)
     return img
