@@ -4,7 +4,6 @@ stored oracle plans, determinism across processes, observations and the MOCK bas
 from __future__ import annotations
 
 import asyncio
-import hashlib
 import json
 import subprocess
 import sys

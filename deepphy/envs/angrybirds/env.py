@@ -126,11 +126,12 @@ class AngryBirdsEnv(Environment):
     def _observation(self, scene: Image) -> Observation:
         level, world = self._level, self._world
         waiting = self._waiting()
+        after = ", ".join(waiting[1:]) if len(waiting) > 1 else "none (this is the last bird)"
         lines = [
             f"Level {level.id}: {level.title}.",
-            f"Bird in the slingshot: the {C.BIRD_NAMES[waiting[0]]} (shot {self._shots + 1} of at most {len(level.birds)}).",
-            "Birds after it, in order: " + (", ".join(waiting[1:]) if len(waiting) > 1 else "none (this is the last bird)")
-            + ".",
+            f"Bird in the slingshot: the {C.BIRD_NAMES[waiting[0]]} "
+            f"(shot {self._shots + 1} of at most {len(level.birds)}).",
+            f"Birds after it, in order: {after}.",
             f"Pigs left: {world.pigs_left}.",
             f"Shots used: {self._shots}. Score so far: {world.score(self._shots)}.",
         ]

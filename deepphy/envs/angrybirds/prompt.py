@@ -17,6 +17,8 @@ class AngryBirdsPrompt(EnvPrompt):
         sling_y = h - (C.SLING_Y - C.GROUND_Y + C.GROUND_DEPTH) * px
         ground_y = h - C.GROUND_DEPTH * px
         blast = C.BLACK_BLAST["radius"]
+        factor = C.BIRD_MATERIAL_FACTOR
+        speed, split = _g(C.MAX_LAUNCH_SPEED), _g(C.BLUE_SPLIT_DEGREES)
         return f"""You are playing Angry Birds, level "{task.id}": launch birds from a slingshot to kill every pig.
 
 The picture is a side view ({w}x{h} pixels; gravity pulls down):
@@ -42,18 +44,18 @@ when the birds run out first.
 The birds (their abilities act by themselves; you only choose the launch):
 - red: a plain bird.
 - yellow: {_g(C.ABILITY_TIME)} s after launch it dashes forward, {_g(C.YELLOW_BOOST)} units/s faster along its
-  flight; it punches through wood ({_g(C.BIRD_MATERIAL_FACTOR['yellow']['wood'])}x damage to wood).
-- blue: {_g(C.ABILITY_TIME)} s after launch it splits into three small birds, {_g(C.BLUE_SPLIT_DEGREES)} degrees apart; it
-  shatters ice ({_g(C.BIRD_MATERIAL_FACTOR['blue']['ice'])}x damage to ice).
+  flight; it punches through wood ({_g(factor['yellow']['wood'])}x damage to wood).
+- blue: {_g(C.ABILITY_TIME)} s after launch it splits into three small birds, {split} degrees apart; it
+  shatters ice ({_g(factor['blue']['ice'])}x damage to ice).
 - black: a bomb. It explodes at its first impact (or {_g(C.BLACK_FUSE)} s after launch if it has hit
   nothing by then), damaging and throwing everything within {_g(blast)} units ({_g(blast * px)} pixels);
-  its impact does {_g(C.BIRD_MATERIAL_FACTOR['black']['stone'])}x damage to stone.
+  its impact does {_g(factor['black']['stone'])}x damage to stone.
 A yellow or blue bird that hits something before {_g(C.ABILITY_TIME)} s does not use its ability.
 
 Action syntax (one line): shoot(angle=A, power=P)
 - A is the launch angle in degrees above the horizontal, from {_g(C.ANGLE_MIN)} to {_g(C.ANGLE_MAX)}: 0 shoots
   straight to the right, 45 diagonally up and to the right, 90 straight up.
-- P is the power, from {_g(C.POWER_MIN)} to {_g(C.POWER_MAX)}: the bird leaves the slingshot at P x {_g(C.MAX_LAUNCH_SPEED)} units/s.
+- P is the power, from {_g(C.POWER_MIN)} to {_g(C.POWER_MAX)}: the bird leaves the slingshot at P x {speed} units/s.
 - Geometry for aiming: 1 unit = {_g(px)} pixels; gravity is {_g(C.GRAVITY)} units/s^2 downwards; the bird
   leaves from pixel ({sling_x:.0f}, {sling_y:.0f}) of the picture (x to the right, y down from the top
   edge); the ground's surface is at pixel row {ground_y:.0f}. There is no air resistance.

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable
 
 import pymunk
 
@@ -381,8 +380,9 @@ class World:
     # -- a shot ------------------------------------------------------------------------------
 
     def shoot(self, bird: str, angle: float, power: float, *, record: bool = False,
-              snapshot_every: float = 0.1, on_step: Callable[["World"], None] | None = None) -> ShotResult:
-        """Launch `bird` from the slingshot and simulate until the scene is at rest."""
+              snapshot_every: float = 0.1) -> ShotResult:
+        """Launch `bird` from the slingshot and simulate until the scene is at rest (or
+        SHOT_MAX_TIME). `record`: keep a snapshot every `snapshot_every` s for pictures."""
         shot = ShotResult(bird=bird)
         self._shot, self._shot_time = shot, 0.0
         first = self._add_bird(bird, (C.SLING_X, C.SLING_Y), C.launch_velocity(angle, power))
@@ -431,8 +431,6 @@ class World:
             if record and (steps % snap_every == 0 or self._frame_blasts):
                 shot.snapshots.append(Snapshot(t, self.poses(), [list(tr) for tr in trails], self._frame_blasts))
             self._frame_blasts = []
-            if on_step is not None:
-                on_step(self)
             if steps >= min_steps and steps % CHECK_EVERY == 0:
                 still = still + CHECK_EVERY if self._at_rest() else 0
                 if still >= hold_steps:
