@@ -1,0 +1,74 @@
+"""Angry Birds prompt: launch the bird in the slingshot; kill every pig with the birds given."""
+
+from deepphy.envs.angrybirds import constants as C
+from deepphy.envs.base import Observation, Task
+from deepphy.prompts.base import EnvPrompt
+
+
+def _g(x: float) -> str:
+    return f"{x:.3g}"
+
+
+class AngryBirdsPrompt(EnvPrompt):
+    def rules(self, task: Task, observation: Observation) -> str:
+        w, h = observation.images[0].size
+        px = w / C.WORLD_W  # pixels per world unit
+        sling_x = C.SLING_X * px
+        sling_y = h - (C.SLING_Y - C.GROUND_Y + C.GROUND_DEPTH) * px
+        ground_y = h - C.GROUND_DEPTH * px
+        blast = C.BLACK_BLAST["radius"]
+        factor = C.BIRD_MATERIAL_FACTOR
+        speed, split = _g(C.MAX_LAUNCH_SPEED), _g(C.BLUE_SPLIT_DEGREES)
+        return f"""You are playing Angry Birds, level "{task.id}": launch birds from a slingshot to kill every pig.
+
+The picture is a side view ({w}x{h} pixels; gravity pulls down):
+- the slingshot stands on the left; the bird sitting in it is the one you launch now, and the
+  birds waiting on the ground behind it come next, the nearest one first;
+- pigs are green round faces; small, medium and big pigs (bigger ones take more to kill);
+- blocks are light brown (wood), pale blue (ice) or gray (stone): bars, squares, hollow
+  squares, triangles and round logs. Ice breaks easily, wood less so, stone hardly at all.
+  A damaged block turns darker and shows black cracks; a hurt pig shows a purple bruise;
+- dark brown-gray boxes are fixed platforms: they never move or break;
+- red crates marked TNT explode when hit hard, damaging and throwing everything nearby;
+- white dots trace the flight of the previous shot, up to where the bird first hit something.
+The text under the picture names the bird in the slingshot, the birds after it, the pigs
+left, the shots used and the score so far.
+
+Goal: kill every pig with the level's birds, launched one at a time in their fixed order.
+A pig dies when it is hit hard enough: by a bird, by a falling or flying block, by a fall
+of its own, or by an explosion; a pig pushed out of the picture dies too. Blocks break
+the same way. After each shot the scene is simulated until everything is at rest; then
+you see it and choose the next shot. The level is won as soon as no pig is left, and lost
+when the birds run out first.
+
+The birds (their abilities act by themselves; you only choose the launch):
+- red: a plain bird.
+- yellow: {_g(C.ABILITY_TIME)} s after launch it dashes forward, {_g(C.YELLOW_BOOST)} units/s faster along its
+  flight; it punches through wood ({_g(factor['yellow']['wood'])}x damage to wood).
+- blue: {_g(C.ABILITY_TIME)} s after launch it splits into three small birds, {split} degrees apart; it
+  shatters ice ({_g(factor['blue']['ice'])}x damage to ice).
+- black: a bomb. It explodes at its first impact (or {_g(C.BLACK_FUSE)} s after launch if it has hit
+  nothing by then), damaging and throwing everything within {_g(blast)} units ({_g(blast * px)} pixels);
+  its impact does {_g(factor['black']['stone'])}x damage to stone.
+A yellow or blue bird that hits something before {_g(C.ABILITY_TIME)} s does not use its ability.
+
+Action syntax (one line): shoot(angle=A, power=P)
+- A is the launch angle in degrees above the horizontal, from {_g(C.ANGLE_MIN)} to {_g(C.ANGLE_MAX)}: 0 shoots
+  straight to the right, 45 diagonally up and to the right, 90 straight up.
+- P is the power, from {_g(C.POWER_MIN)} to {_g(C.POWER_MAX)}: the bird leaves the slingshot at P x {speed} units/s.
+- Geometry for aiming: 1 unit = {_g(px)} pixels; gravity is {_g(C.GRAVITY)} units/s^2 downwards; the bird
+  leaves from pixel ({sling_x:.0f}, {sling_y:.0f}) of the picture (x to the right, y down from the top
+  edge); the ground's surface is at pixel row {ground_y:.0f}. There is no air resistance.
+- A and P are used to {C.ACTION_DECIMALS} decimal places. A reply that does not give one such shot, or
+  gives a value out of range, is an invalid action: it is recorded as such and ends the level, lost.
+
+Score: {C.SCORE_PIG} per pig killed, {C.SCORE_BLOCK} per block destroyed and, when the level is won,
+{C.SCORE_UNUSED_BIRD} per bird left unused. A win earns 1 star; a high score (fewer birds used, more
+destruction) earns 2 or 3 stars."""
+
+    def prediction_hint(self) -> str:
+        return ("where the bird will fly and what it will hit first, what will break, fall or explode, "
+                "and which pigs will die")
+
+    def example(self, observation: Observation) -> str:
+        return "shoot(angle=30, power=0.85)"
