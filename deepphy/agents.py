@@ -2,9 +2,13 @@
 endpoints of a models file. All are `ModelClient`s, so a baseline's answer goes through
 the same prompt, parser and records as a real model's.
 
-MOCK answers, in the environment's syntax, a uniformly random valid action drawn from a
-generator seeded by (seed, task, run, attempt, step): its text goes through the same
-parser as a real model's, and a run's actions do not depend on scheduling.
+The random baselines answer from a generator seeded by (seed, task, run, attempt, step),
+so a run's actions do not depend on scheduling, and their text goes through the same parser
+as a real model's:
+- `mock`: the reference implementation's random baseline of each environment (its
+  `ActionSpace.reference_reply`), so MOCK rows compare with published ones;
+- `mock-uniform`: a uniformly random valid action that never repeats one of the task's
+  failed attempts where the space allows (a stronger random baseline).
 """
 
 from __future__ import annotations
@@ -15,15 +19,28 @@ from deepphy.envs import ActionSpace, get_spec
 from deepphy.models import ModelClient, ModelConfig, UnknownModel, client_from_config, load_models
 from deepphy.models.base import ModelRequest, ModelResponse, RequestContext
 from deepphy.models.limiter import Limiter
-from deepphy.prompts import mock_reply
+from deepphy.chat import PromptFormat
+from deepphy.prompts import OUTCOMES, mock_reply
 from deepphy.seeding import seeded_rng
 
 
-def mock_action_text(ctx: RequestContext) -> str:
-    """MOCK's action for a request: depends only on the seed and the request's position."""
+def mock_text(ctx: RequestContext, baseline: str = "mock") -> str:
+    """A random baseline's whole reply in the request's format (WM: with a coin-flip outcome)."""
+    outcome = None
+    if ctx.format is PromptFormat.WM:
+        rng = seeded_rng("mock-outcome", ctx.seed, ctx.env, ctx.task_id, ctx.run, ctx.attempt, ctx.step)
+        outcome = OUTCOMES[int(rng.integers(len(OUTCOMES)))]
+    return mock_reply(ctx.format, mock_action_text(ctx, baseline), outcome)
+
+
+def mock_action_text(ctx: RequestContext, baseline: str = "mock") -> str:
+    """A random baseline's action text for a request: depends only on the seed and the
+    request's position."""
     get_spec(ctx.env).load_package()  # registers the environment's action spaces
     space = ActionSpace.from_json(ctx.action_space)
     rng = seeded_rng("mock", ctx.seed, ctx.env, ctx.task_id, ctx.run, ctx.attempt, ctx.step)
+    if baseline == "mock":
+        return space.reference_reply(rng, ctx.earlier)
     tried = []
     for text in ctx.tried:
         try:
@@ -34,14 +51,21 @@ def mock_action_text(ctx: RequestContext) -> str:
 
 
 class MockModel(ModelClient):
+    """The reference implementation's random baseline."""
+
     name = "mock"
 
     async def complete(self, request: ModelRequest) -> ModelResponse:
-        ctx = request.context
-        return ModelResponse(text=mock_reply(ctx.format, mock_action_text(ctx)))
+        return ModelResponse(text=mock_text(request.context, self.name))
 
 
-BASELINES: dict[str, type[ModelClient]] = {"mock": MockModel}
+class UniformMockModel(MockModel):
+    """Uniform over the valid actions, never repeating a failed attempt's action."""
+
+    name = "mock-uniform"
+
+
+BASELINES: dict[str, type[ModelClient]] = {"mock": MockModel, "mock-uniform": UniformMockModel}
 
 
 def endpoint_config(name: str, models_file: str | Path | None = None) -> ModelConfig | None:

@@ -52,6 +52,6 @@ class RuntimeOptions(BaseModel):
     progress: bool = True
     step_timeout_s: float = Field(600.0, gt=0)  # one env call (first Kinetix step compiles)
     model_timeout_s: float = Field(900.0, gt=0)  # one model call, retries included
-    attempt_retries: int = Field(3, ge=0)  # re-runs of an attempt whose worker died
+    attempt_retries: int = Field(5, ge=0)  # re-runs of an attempt whose worker died (after 1, 2, 4, ... s)
     max_cost_usd: float | None = Field(None, gt=0)  # stop, resumably, once the run's model cost reaches this
     models_file: str | None = None  # YAML of model endpoints (absolute: workers may run elsewhere)

@@ -92,6 +92,7 @@ async def run_attempt(
             context=RequestContext(
                 env=config.env, task_id=task.id, run=run, attempt=attempt, step=step, seed=config.seed,
                 format=config.format, action_space=observation.action_space.model_dump(mode="json"), tried=tried,
+                earlier=[p.action for p in recent],
             ),
         )
         t0 = time.perf_counter()
@@ -102,13 +103,14 @@ async def run_attempt(
         stats.images_dropped += response.images_dropped
 
         reply, cut = cut_reply(response.text)
-        prediction, action_text = split_reply(config.format, reply)
+        parts = split_reply(config.format, reply)
+        said = dict(prompt=digest, raw_output=reply, reply_cut=cut, prediction=parts.prediction,
+                    predicted_outcome=parts.outcome)
         try:
-            action = observation.action_space.parse(action_text)
+            action = observation.action_space.parse(parts.action_text)
         except InvalidAction as e:
             invalid_reason = f"unparseable action: {e}"
-            steps.append(StepRecord(step=step, prompt=digest, raw_output=reply, reply_cut=cut, prediction=prediction,
-                                    invalid_reason=invalid_reason, terminated=True))
+            steps.append(StepRecord(step=step, **said, invalid_reason=invalid_reason, terminated=True))
             break
         canonical = observation.action_space.format(action)
         t0 = time.perf_counter()
@@ -118,8 +120,7 @@ async def run_attempt(
             rel = artifacts.write_frame(task.id, run, attempt, f"s{step}_{frame.name}", frame.png)
             frames.append(KeyFrame(path=rel, caption=f"step {step}, {frame.caption}"))
         steps.append(StepRecord(
-            step=step, prompt=digest, raw_output=reply, reply_cut=cut, prediction=prediction,
-            action=action.model_dump(mode="json"), action_text=canonical, invalid_reason=result.invalid_reason,
+            step=step, **said, action=action.model_dump(mode="json"), action_text=canonical, invalid_reason=result.invalid_reason,
             feedback=result.feedback, info=result.info, terminated=result.terminated, truncated=result.truncated,
         ))
         if result.invalid_reason:

@@ -15,6 +15,7 @@ from typing import Any, Sequence
 
 from pydantic import ValidationError
 
+from deepphy import reaper
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.metrics.live import format_progress
@@ -106,6 +107,9 @@ def ensure_ray(runtime: RuntimeOptions) -> bool:
         object_store_memory=256 * 1024**2,
         logging_level=logging.WARNING,
     )
+    # If this process dies without shutting Ray down (kill -9), the watchdog stops the local
+    # Ray processes it started, agents included, within seconds.
+    reaper.start(reaper.ray_roots())
     return True
 
 

@@ -169,6 +169,8 @@ class Scheduler:
                 if lost > self.runtime.attempt_retries:
                     raise
                 log.warning("attempt %s/%d/%d lost its worker (%s); re-running it", task.id, run, attempt, e)
+                # Ray restarts a dead worker (seconds; longer on a loaded machine or a new node).
+                await asyncio.sleep(min(30.0, 2.0 ** (lost - 1)))
                 continue
             except ModelUnavailable as e:
                 model_errors += 1

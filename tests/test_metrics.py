@@ -153,3 +153,27 @@ def test_progress_line_says_what_is_happening():
     assert "episodes 3/120 · in flight 64 · solved 3 · attempts 3 (0.0/s) · decisions 200" in line
     assert "ETA 48m45s" in line and line.endswith("1m15s")  # 117 left at 3 per 75 s
     assert "% of finished" not in line
+
+
+def test_wm_predicted_outcomes_are_scored_against_the_attempt():
+    def wm_rec(task, attempt, success, said):
+        r = rec(task, 0, attempt, success=success, steps=len(said))
+        for step, outcome in zip(r.steps, said):
+            step.predicted_outcome = outcome
+        return r
+
+    records = [
+        wm_rec("a", 1, False, ["success"]),  # predicted success, failed
+        wm_rec("a", 2, True, ["success"]),  # right
+        wm_rec("b", 1, False, ["failure", None, "success"]),  # right, unstated, wrong
+    ]
+    p = F.prediction_scores(records)
+    assert (p.decisions, p.stated) == (5, 4)
+    assert p.confusion == {"success": {"success": 1, "failure": 2}, "failure": {"success": 0, "failure": 1}}
+    assert p.accuracy == pytest.approx(2 / 4) and p.predicted_success_failed == pytest.approx(2 / 3)
+    tasks = [Task(env="iphyre", id="a"), Task(env="iphyre", id="b")]
+    wm = build_report(RunConfig(runs=1, format="wm"), tasks, records, k_max=10)
+    assert wm["overall"]["mean"]["wm"]["accuracy"] == pytest.approx(0.5)
+    text = render_text(wm)
+    assert "PredAcc" in text and "50.0" in text and "predicted success: 1.0 solved, 2.0 failed" in text
+    assert "wm" not in build_report(RunConfig(runs=1), tasks, records, k_max=10)["overall"]["mean"]

@@ -173,3 +173,20 @@ def test_cli_models_file_and_missing_key(server, models_file, tmp_path, deepphy_
                        env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "unknown model 'nope'" in r.stderr and "local" in r.stderr
     assert not Path(tmp_path / "x").exists() and not Path(tmp_path / "y").exists()
+
+
+def test_wm_run_over_http_reports_prediction_accuracy(server, models_file, tmp_path):
+    """The local server answers WM requests with a prediction, an outcome and an action; the
+    report scores the stated outcomes against what happened."""
+    from deepphy.metrics.report import report_of
+
+    server.configure(faults={"rate": 0.0})
+    config = RunConfig(**{**LOCAL.model_dump(), "format": "wm", "runs": 1})
+    assert evaluate(config, tmp_path, RUNTIME.model_copy(update={"models_file": models_file()})).complete
+    records = read_records(tmp_path)
+    assert all(s.predicted_outcome in ("success", "failure") for r in records for s in r.steps)
+    wm = report_of(tmp_path)["overall"]["mean"]["wm"]
+    assert wm["stated"] == wm["decisions"] == sum(len(r.steps) for r in records)
+    right = sum(s.predicted_outcome == ("success" if r.success else "failure") for r in records for s in r.steps)
+    assert wm["accuracy"] == pytest.approx(right / wm["stated"])
+    assert "PredAcc" in render_text(report_of(tmp_path))

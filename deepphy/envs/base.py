@@ -101,10 +101,10 @@ class ActionSpace(BaseModel, ABC):
         """A uniformly random valid action, avoiding `exclude` where the space allows
         (the `mock-uniform` baseline)."""
 
-    def reference_reply(self, rng: np.random.Generator) -> str:
+    def reference_reply(self, rng: np.random.Generator, earlier: Sequence[str] = ()) -> str:
         """The reply text of the reference implementation's random baseline (`mock`) for
-        this decision: what it would send, unparseable replies included. Default: a
-        uniformly random valid action."""
+        this decision: what it would send, unparseable replies included. `earlier`: this
+        attempt's earlier actions (canonical text). Default: a uniformly random valid action."""
         return self.format(self.sample(rng))
 
     @abstractmethod

@@ -152,6 +152,39 @@ def stars(eps: Sequence[Episode], n_tasks: int | None = None) -> StarFigures:
 
 
 @dataclass
+class PredictionScores:
+    """WM predicted outcomes against what happened. Each decision with a stated outcome is
+    scored against its attempt's result; a decision without one is counted as unstated."""
+
+    decisions: int  # decisions made
+    stated: int  # decisions with a stated outcome
+    accuracy: float | None  # share of stated outcomes that came true
+    predicted_success_failed: float | None  # of the "success" predictions, the share whose attempt failed
+    confusion: dict[str, dict[str, int]]  # predicted -> actual -> decisions
+
+
+def prediction_scores(records: Iterable[AttemptRecord]) -> PredictionScores:
+    outcomes = ("success", "failure")
+    confusion = {p: {a: 0 for a in outcomes} for p in outcomes}
+    decisions = 0
+    for r in records:
+        actual = "success" if r.success else "failure"
+        for s in r.steps:
+            decisions += 1
+            if s.predicted_outcome in confusion:
+                confusion[s.predicted_outcome][actual] += 1
+    stated = sum(sum(row.values()) for row in confusion.values())
+    said_success = sum(confusion["success"].values())
+    return PredictionScores(
+        decisions=decisions,
+        stated=stated,
+        accuracy=(confusion["success"]["success"] + confusion["failure"]["failure"]) / stated if stated else None,
+        predicted_success_failed=confusion["success"]["failure"] / said_success if said_success else None,
+        confusion=confusion,
+    )
+
+
+@dataclass
 class MeanStd:
     mean: float | None
     std: float | None

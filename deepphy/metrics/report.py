@@ -15,7 +15,8 @@ from deepphy.metrics import figures as F
 from deepphy.runs.records import AttemptRecord
 
 
-def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, figures: ReportSpec, run: int) -> dict[str, Any]:
+def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, figures: ReportSpec, run: int,
+                 wm_records: list[AttemptRecord] | None) -> dict[str, Any]:
     finished = [e for e in eps if e.finished]
     solved = sum(e.solved for e in eps)
     out: dict[str, Any] = {
@@ -33,6 +34,10 @@ def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, figures: Report
         out["avg_steps"] = F.average_steps(eps)
     if figures.auccess:
         out["auccess"] = F.auccess(eps, n_tasks)
+    if wm_records is not None:
+        p = F.prediction_scores(wm_records)
+        out["wm"] = {"decisions": p.decisions, "stated": p.stated, "accuracy": p.accuracy,
+                     "predicted_success_failed": p.predicted_success_failed, "confusion": p.confusion}
     if figures.stars:
         s = F.stars(eps, n_tasks)
         out["stars"] = {
@@ -65,11 +70,18 @@ def _mean_std(per_run: list[dict[str, Any]]) -> tuple[dict[str, Any], dict[str, 
     return means, stds
 
 
-def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int, figures: ReportSpec) -> dict[str, Any]:
+def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int, figures: ReportSpec,
+             wm_records: list[AttemptRecord] | None) -> dict[str, Any]:
+    """Figures per run, then mean and std. `wm_records`: the records to score WM predictions on."""
     by_run: dict[int, list[F.Episode]] = defaultdict(list)
     for e in eps:
         by_run[e.run].append(e)
-    per_run = [_run_figures(by_run.get(r, []), len(tasks), k_max, figures, r) for r in range(runs)]
+    wanted = {t.id for t in tasks}
+    per_run = [
+        _run_figures(by_run.get(r, []), len(tasks), k_max, figures, r,
+                     None if wm_records is None else [x for x in wm_records if x.run == r and x.task in wanted])
+        for r in range(runs)
+    ]
     mean, std = _mean_std(per_run)
     return {"tasks": len(tasks), "per_run": per_run, "mean": mean, "std": std}
 
@@ -78,6 +90,7 @@ def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[Att
     figures = get_spec(config.env).report
     wanted = {t.id for t in tasks}
     eps = [e for e in F.episodes(records, k_max) if e.task in wanted and e.run < config.runs]
+    wm = list(records) if config.format.value == "wm" else None
     report: dict[str, Any] = {
         "env": config.env,
         "model": config.model,
@@ -87,12 +100,13 @@ def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[Att
         "max_attempts": k_max,
         "step_noun": figures.step_noun,
         "env_options": config.env_options,
-        "overall": _section(eps, tasks, config.runs, k_max, figures),
+        "overall": _section(eps, tasks, config.runs, k_max, figures, wm),
     }
     groups = sorted({t.group for t in tasks if t.group})
     if len(groups) > 1:
         report["groups"] = {
-            g: _section([e for e in eps if e.group == g], [t for t in tasks if t.group == g], config.runs, k_max, figures)
+            g: _section([e for e in eps if e.group == g], [t for t in tasks if t.group == g], config.runs, k_max,
+                        figures, wm)
             for g in groups
         }
     return report
@@ -138,6 +152,7 @@ def table(reports: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]
     extra_steps = next((m["success_within_steps"] for m in means if "success_within_steps" in m), None)
     show_auccess = any("auccess" in m for m in means)
     show_stars = any("stars" in m for m in means)
+    show_wm = any("wm" in m for m in means)
     show_errors = any(x["model_errors"] or x["retries"] for x in per_runs)
     show_cost = any(x["cost_usd"] or x["input_tokens"] for x in per_runs)
     combined = len(reports) > 1
@@ -150,6 +165,8 @@ def table(reports: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]
         header.append("AUCCESS")
     if show_stars:
         header += ["Stars", "Stars/lvl", "Stars/done", "1*", "2*", "3*"]
+    if show_wm:  # WM predicted outcomes: accuracy, and how often a predicted success failed
+        header += ["PredAcc", "PredS->F"]
     if show_errors:
         header += ["ModelErr", "Retries"]
     if show_cost:
@@ -176,6 +193,10 @@ def table(reports: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]
                 cells += [_num(st["total"], sd["total"], 1), _num(st["mean_all"], sd["mean_all"]),
                           _num(st["mean_completed"], sd["mean_completed"])]
                 cells += [_num(st["levels_with"][c], sd["levels_with"][c], 1) for c in ("1", "2", "3")]
+        if show_wm:
+            wm, wsd = m.get("wm"), s.get("wm")
+            cells += (["-", "-"] if wm is None else
+                      [_pct(wm["accuracy"], wsd["accuracy"]), _pct(wm["predicted_success_failed"], wsd["predicted_success_failed"])])
         if show_errors:
             cells += [_num(m["model_errors"], s["model_errors"], 1), _num(m["retries"], s["retries"], 1)]
         if show_cost:
@@ -209,6 +230,16 @@ def render_text(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
         )
     lines += ["success rate (%) within k attempts, mean±std over runs", fmt(header), fmt(["-" * w for w in widths])]
     lines += [fmt(r) for r in rows]
+    for report in reports:
+        wm = report["overall"]["mean"].get("wm")
+        if wm is not None:
+            c = wm["confusion"]
+            lines += [
+                f"WM predicted outcomes ({setting(report)}): {_num(wm['stated'], None, 1)} of "
+                f"{_num(wm['decisions'], None, 1)} decisions stated one (mean per run); decisions by prediction and result:",
+                f"  predicted success: {_num(c['success']['success'], None, 1)} solved, {_num(c['success']['failure'], None, 1)} failed",
+                f"  predicted failure: {_num(c['failure']['success'], None, 1)} solved, {_num(c['failure']['failure'], None, 1)} failed",
+            ]
     return "\n".join(lines)
 
 

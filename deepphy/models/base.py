@@ -26,6 +26,7 @@ class RequestContext(BaseModel):
     format: PromptFormat
     action_space: dict[str, Any]  # ActionSpace JSON (see ActionSpace.from_json)
     tried: list[str] = Field(default_factory=list)  # actions of failed attempts of this task
+    earlier: list[str] = Field(default_factory=list)  # actions of this attempt's earlier decisions
 
 
 class ModelRequest(BaseModel):

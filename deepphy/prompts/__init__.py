@@ -5,9 +5,11 @@ from __future__ import annotations
 
 from deepphy.chat import ImagePart, Message, PromptFormat, TextPart
 from deepphy.prompts.base import (
+    OUTCOMES,
     EnvPrompt,
     PastAttempt,
     PastStep,
+    Reply,
     build_messages,
     mock_reply,
     prompt_as_json,
@@ -16,6 +18,6 @@ from deepphy.prompts.base import (
 )
 
 __all__ = [
-    "EnvPrompt", "ImagePart", "Message", "PastAttempt", "PastStep", "PromptFormat", "TextPart",
+    "OUTCOMES", "Reply", "EnvPrompt", "ImagePart", "Message", "PastAttempt", "PastStep", "PromptFormat", "TextPart",
     "build_messages", "mock_reply", "prompt_as_json", "prompt_digest", "split_reply",
 ]

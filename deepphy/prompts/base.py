@@ -13,7 +13,7 @@ import hashlib
 import json
 import re
 from abc import ABC, abstractmethod
-from typing import ClassVar, Sequence
+from typing import ClassVar, NamedTuple, Sequence
 
 from pydantic import BaseModel, Field
 
@@ -70,6 +70,7 @@ def _wm_instructions(example: str, hint: str) -> str:
         "First predict what your action will cause, then give the action. Reply in exactly "
         "this form:\n"
         f"Prediction: <{hint}>\n"
+        f"Outcome: <one word, {' or '.join(OUTCOMES)}: whether this attempt will reach the goal>\n"
         f"Action: {example}"
     )
 
@@ -119,34 +120,51 @@ def build_messages(
     return [system, Message(role="user", content=parts)]
 
 
+OUTCOMES = ("success", "failure")
+_OUTCOME_WORDS = {
+    **dict.fromkeys(("success", "successful", "succeed", "succeeds", "solved", "solve", "win", "won", "yes"), "success"),
+    **dict.fromkeys(("failure", "fail", "fails", "failed", "unsolved", "lose", "lost", "no"), "failure"),
+}
+
+
+class Reply(NamedTuple):
+    """A reply split into its parts (WM: prediction, predicted outcome, action)."""
+
+    prediction: str | None
+    outcome: str | None  # "success" | "failure"; None when not stated (never an invalid action)
+    action_text: str  # handed to the action space's parser as is
+
+
 # Possessive quantifiers (*+): no backtracking, so a reply of any shape splits in linear time.
-_ACTION_LINE = r"\n[ \t]*+\**+[ \t]*+action[ \t]*+\**+[ \t]*+[:\-]"
-_PREDICTION = re.compile(r"\bprediction[ \t]*+\**+[ \t]*+[:\-]\s*+(.*?)(?=" + _ACTION_LINE + r"|\Z)", re.I | re.S | re.ASCII)
-_ACTION = re.compile(r"(?:\A|" + _ACTION_LINE[:2] + r")[ \t]*+\**+[ \t]*+action[ \t]*+\**+[ \t]*+[:\-]\s*+(.*)\Z",
-                     re.I | re.S | re.ASCII)
+_KEY = r"[ \t]*+\**+[ \t]*+{}[ \t]*+\**+[ \t]*+[:\-]"
+_NEXT_SECTION = r"\n" + _KEY.format("(?:outcome|action)")
+_PREDICTION = re.compile(r"\bprediction[ \t]*+\**+[ \t]*+[:\-]\s*+(.*?)(?=" + _NEXT_SECTION + r"|\Z)", re.I | re.S | re.ASCII)
+_OUTCOME = re.compile(r"(?:\A|\n)" + _KEY.format("outcome") + r"[ \t]*+\**+[ \t]*+([a-z]++)", re.I | re.ASCII)
+_ACTION = re.compile(r"(?:\A|\n)" + _KEY.format("action") + r"\s*+(.*)\Z", re.I | re.S | re.ASCII)
 
 
-def split_reply(fmt: PromptFormat, text: str) -> tuple[str | None, str]:
-    """(prediction, action text). The action text is handed to the space's parser as is.
-
-    WM replies carry `Prediction: ... Action: ...`; a WM reply with no `Action:` section
-    is parsed whole, so a bare action still counts, and its prediction is None.
-    """
+def split_reply(fmt: PromptFormat, text: str) -> Reply:
+    """VLA replies are the action text. WM replies carry `Prediction: ...`, `Outcome:
+    success|failure` and `Action: ...`; a WM reply with no `Action:` section is parsed
+    whole, so a bare action still counts. The last stated outcome counts."""
     if fmt is PromptFormat.VLA:
-        return None, text
+        return Reply(None, None, text)
     prediction = _PREDICTION.search(text)
+    outcomes = _OUTCOME.findall(text)
     action = _ACTION.search(text)
-    return (
+    return Reply(
         prediction.group(1).strip() if prediction else None,
+        _OUTCOME_WORDS.get(outcomes[-1].lower()) if outcomes else None,
         action.group(1).strip().lstrip("*").strip() if action else text,
     )
 
 
-def mock_reply(fmt: PromptFormat, action_text: str) -> str:
-    """A reply in the requested format carrying `action_text` (MOCK's answer)."""
+def mock_reply(fmt: PromptFormat, action_text: str, outcome: str | None = None) -> str:
+    """A reply in the requested format carrying `action_text` (a random baseline's answer)."""
     if fmt is PromptFormat.VLA:
         return action_text
-    return f"Prediction: no prediction (random baseline).\nAction: {action_text}"
+    said = f"\nOutcome: {outcome}" if outcome else ""
+    return f"Prediction: no prediction (random baseline).{said}\nAction: {action_text}"
 
 
 def prompt_digest(messages: list[Message]) -> str:

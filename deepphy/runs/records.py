@@ -17,6 +17,7 @@ class StepRecord(BaseModel):
     raw_output: str  # the reply, cut to its last MAX_REPLY_CHARS characters (deepphy/envs/parsing.py)
     reply_cut: int = 0  # characters cut from the start of an over-long reply
     prediction: str | None = None  # WM format only
+    predicted_outcome: str | None = None  # WM: "success" | "failure" as stated; None if not stated
     action: dict[str, Any] | None = None  # the parsed action; None if invalid
     action_text: str | None = None  # the action in canonical syntax
     invalid_reason: str | None = None

@@ -17,7 +17,7 @@ The answer: the server needs the request's RequestContext, which is NOT in the m
 (a real provider must see exactly the prompt). Clients whose model config sets
 `send_context: true` (allowed only for loopback base URLs) send it in the
 `X-Deepphy-Context` header (base64url of zlib'd JSON, see deepphy.models.wire); the
-server answers `mock_reply(ctx.format, mock_action_text(ctx))`, which is byte for byte
+server answers `deepphy.agents.mock_text(ctx)`, which is byte for byte
 what `deepphy.agents.MockModel` returns for the same request. Without the header it
 answers 400.
 
@@ -620,10 +620,9 @@ class MockServer:
         if fault == "prose":
             text = PROSE_REPLY
         else:
-            from deepphy.agents import mock_action_text
-            from deepphy.prompts import mock_reply
+            from deepphy.agents import mock_text
 
-            text = mock_reply(ctx.format, mock_action_text(ctx))
+            text = mock_text(ctx)
         return web.json_response(fmt.reply(body, text, tin, text_tokens(text)), headers=id_header), fault
 
 

@@ -114,7 +114,7 @@ class ShootSpace(ActionSpace):
         # is nearly impossible) and the same launch means something else in another state.
         return self.make(float(rng.uniform(ANGLE_MIN, ANGLE_MAX)), float(rng.uniform(POWER_MIN, POWER_MAX)))
 
-    def reference_reply(self, rng: np.random.Generator) -> str:
+    def reference_reply(self, rng: np.random.Generator, earlier: Sequence[str] = ()) -> str:
         """The reference code's baseline: angle U(0, 90), power U(0.5, 1.0), two decimals."""
         angle = round(float(rng.uniform(ANGLE_MIN, ANGLE_MAX)), 2)
         power = round(float(rng.uniform(REFERENCE_POWER_MIN, POWER_MAX)), 2)

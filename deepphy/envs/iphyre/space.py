@@ -16,6 +16,11 @@ from deepphy.envs.parsing import brief, is_number, last_json_array
 MAX_TIME = 15.0  # seconds simulated per attempt (iphyre's max_time)
 FPS = 60
 MAX_CLICKS = 12  # more clicks than blocks is never useful; bounds the plan a model may send
+# The reference implementation's random baseline: remove k distinct blocks, k uniform in
+# [ceil(REFERENCE_SHARE * n), n] of n, each at a time uniform in [REFERENCE_T0, MAX_TIME] s
+# rounded to 2 decimals (a time of exactly MAX_TIME is possible, and invalid here).
+REFERENCE_SHARE = 0.9
+REFERENCE_T0 = 0.1
 
 
 class Click(BaseModel):
@@ -60,8 +65,15 @@ class IPhyreSpace(ActionSpace):
             clicks.append(Click(time=round(float(t), 4), index=int(i)))
         return IPhyrePlan(clicks=tuple(sorted(clicks, key=lambda c: (c.time, c.index))))
 
+    def reference_reply(self, rng: np.random.Generator, earlier: Sequence[str] = ()) -> str:
+        n = self.num_blocks
+        k = int(rng.integers(math.ceil(REFERENCE_SHARE * n), n + 1))
+        blocks = rng.permutation(n)[:k]
+        times = [round(float(rng.uniform(REFERENCE_T0, MAX_TIME)), 2) for _ in blocks]
+        return json.dumps([{"time": t, "index": int(b)} for t, b in zip(times, blocks)])
+
     def sample(self, rng: np.random.Generator, exclude: Sequence[Action] = ()) -> IPhyrePlan:
-        # MOCK as in the I-PHYRE baselines: remove 1-3 distinct blocks at uniform times.
+        # mock-uniform: remove 1-3 distinct blocks at uniform times (as in I-PHYRE's own baselines).
         n = int(rng.integers(1, min(3, self.num_blocks) + 1))
         blocks = rng.choice(self.num_blocks, size=n, replace=False)
         times = np.round(rng.uniform(0.0, MAX_TIME, size=n), 1)

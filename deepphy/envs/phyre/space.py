@@ -63,6 +63,11 @@ def phyre_r(radius_px: float) -> float:
 # -- the grid ---------------------------------------------------------------------------------
 
 
+# The reference implementation's random baseline answers a refusal this often.
+REFERENCE_REFUSALS = 0.1
+REFERENCE_REFUSAL = "I am not able to determine where to place the ball from this image."
+
+
 class PhyreAction(Action):
     cell: int
     radius: int
@@ -104,6 +109,13 @@ class PhyreSpace(ActionSpace):
     def all_actions(self) -> list[PhyreAction]:
         return [PhyreAction(cell=c, radius=r) for c in range(1, self.num_cells + 1)
                 for r in range(1, self.radius_levels + 1)]
+
+    def reference_reply(self, rng: np.random.Generator, earlier: Sequence[str] = ()) -> str:
+        """The reference baseline: a uniform cell and radius level, but one reply in ten is a
+        refusal that no parser reads (an invalid attempt). No memory of earlier attempts."""
+        if rng.random() < REFERENCE_REFUSALS:
+            return REFERENCE_REFUSAL
+        return f"Cell: {int(rng.integers(1, self.num_cells + 1))}, Radius: {int(rng.integers(1, self.radius_levels + 1))}"
 
     def sample(self, rng: np.random.Generator, exclude: Sequence[Action] = ()) -> PhyreAction:
         excluded = {(a.cell, a.radius) for a in exclude if isinstance(a, PhyreAction)}

@@ -35,6 +35,13 @@ Decisions (documented in the README):
 - A 9-ball potted on a foul is respotted on the foot spot (w/2, 3l/4) or the nearest free
   point (standard nine-ball rule; pooltool only respots it when it was the last ball).
 - Attempts: one game per task (max_attempts 1), at most 15 shots (max_steps 15).
+- Option `rules=reference` reproduces the reference implementation's set-up, so published
+  numbers can be compared: one rack (drawn once, `seeded_rng("pooltool", "rack",
+  "reference")`) copied for all 100 games; no separate break (the cue ball starts on the
+  head spot and shot 1 aims at the 1-ball like any other); no fouls: any shot that pots the
+  9-ball wins; a potted cue ball goes back on the head spot (or the nearest free point);
+  potted balls stay down. The paper itself blames the single rack for a deterministic
+  model scoring 100%, hence not the default.
 - Numba: pooltool compiles its kernels on the first shot (~25-30 s of CPU). We point
   NUMBA_CACHE_DIR at $DEEPPHY_CACHE_DIR/numba (default ~/.cache/deepphy/numba) before
   numba is imported, so every process and worker on a machine shares one cache, and the
@@ -48,15 +55,17 @@ from JSON by the MOCK model) without pulling in panda3d and numba.
 from __future__ import annotations
 
 import re
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
-from deepphy.envs.base import Action, Environment, Observation, StepResult, Task
+from deepphy.envs.base import Action, EnvOptions, Environment, Observation, StepResult, Task
 from deepphy.envs.images import Image
 from deepphy.envs.pooltool import SPEC
 from deepphy.envs.pooltool.render import _traces, render_table
 from deepphy.envs.pooltool.sim import (
+    FOOT_SPOT,
+    HEAD_SPOT,
     MAX_EVENTS,
     _engine,
     _free_spot,
@@ -71,8 +80,13 @@ from deepphy.envs.pooltool.space import MAX_SHOTS, NUM_RACKS, PoolShot, PoolSpac
 # -- the environment ------------------------------------------------------------------
 
 
+class PooltoolOptions(EnvOptions):
+    rules: Literal["nineball", "reference"] = "nineball"  # see the module's docstring
+
+
 class PooltoolEnv(Environment):
     spec = SPEC
+    Options = PooltoolOptions
 
     def __init__(self, options=None) -> None:
         super().__init__(options)
@@ -88,7 +102,8 @@ class PooltoolEnv(Environment):
 
     @classmethod
     def tasks(cls, options) -> list[Task]:
-        return [Task(env=SPEC.name, id=f"rack_{k:03d}", params={"rack": k}) for k in range(NUM_RACKS)]
+        return [Task(env=SPEC.name, id=f"rack_{k:03d}", params={"rack": k, "rules": options.rules})
+                for k in range(NUM_RACKS)]
 
     @staticmethod
     def rack_index(task: Task) -> int:
@@ -104,11 +119,20 @@ class PooltoolEnv(Environment):
     def reset(self, task: Task) -> Observation:
         pt = _pt()
         self._task = task
-        self._system = build_system(self.rack_index(task))
-        self._game = pt.get_ruleset(pt.GameType.NINEBALL)(players=[pt.Player("agent")])
         self._shots = 0
-        self._note = "Break shot: the cue ball starts behind the head string."
+        if self.reference:
+            self._system = build_system("reference", cue=HEAD_SPOT)
+            self._game = None
+            self._note = "First shot: the cue ball starts on the head spot."
+        else:
+            self._system = build_system(self.rack_index(task))
+            self._game = pt.get_ruleset(pt.GameType.NINEBALL)(players=[pt.Player("agent")])
+            self._note = "Break shot: the cue ball starts behind the head string."
         return self._observation()
+
+    @property
+    def reference(self) -> bool:
+        return self.options.rules == "reference"  # type: ignore[attr-defined]
 
     def step(self, action: Action) -> StepResult:
         assert isinstance(action, PoolShot) and self._system is not None
@@ -128,27 +152,25 @@ class PooltoolEnv(Environment):
         traces = _traces(system, moved)
         truncated = len(events) >= MAX_EVENTS
 
-        game.process_and_advance(system)
-        info_obj = game.shot_info
-        legal, game_over = bool(info_obj.legal), bool(info_obj.game_over)
-        success = game_over and "9" in potted and legal
-
         notes: list[str] = []
-        if not legal and not game_over:
-            if "9" in potted:
-                if system.balls["9"].state.s == 4:  # pooltool respots it only when it was the last ball
-                    _place(system, "9", _free_spot(system, (system.table.w / 2, 3 * system.table.l / 4), "9"))
-                notes.append("the 9-ball was potted on a foul, so it is respotted on the foot spot")
-            spot = (system.table.w / 2, system.table.l / 4)
-            where = _free_spot(system, spot, "cue")
-            _place(system, "cue", where)
-            notes.append(
-                "ball in hand: the cue ball is placed on the head spot"
-                if where == spot
-                else "ball in hand: the cue ball is placed next to the head spot (it was occupied)"
-            )
+        if self.reference:  # no fouls: any pot of the 9 wins; a potted cue ball is respotted
+            legal, reason = None, None
+            success = "9" in potted
+            if "cue" in potted and not success:
+                notes.append(self._respot_cue("the cue ball is placed"))
+        else:
+            game.process_and_advance(system)
+            info_obj = game.shot_info
+            legal, game_over, reason = bool(info_obj.legal), bool(info_obj.game_over), info_obj.reason
+            success = game_over and "9" in potted and legal
+            if not legal and not game_over:
+                if "9" in potted:
+                    if system.balls["9"].state.s == 4:  # pooltool respots it only when it was the last ball
+                        _place(system, "9", _free_spot(system, self._at(FOOT_SPOT), "9"))
+                    notes.append("the 9-ball was potted on a foul, so it is respotted on the foot spot")
+                notes.append(self._respot_cue("ball in hand: the cue ball is placed"))
 
-        outcome = self._describe_shot(action, target, first_hit, potted, legal, info_obj.reason, notes, truncated)
+        outcome = self._describe_shot(action, target, first_hit, potted, legal, reason, notes, truncated)
         frame = render_table(system, traces=traces)
         key = Image.from_array(
             f"shot_{self._shots}",
@@ -162,14 +184,15 @@ class PooltoolEnv(Environment):
             "first_hit": first_hit,
             "potted": potted,
             "legal": legal,
-            "foul": None if legal else info_obj.reason,
+            "foul": None if legal in (True, None) else reason,
             "balls_left": _on_table(system),
             "events": len(events),
         }
         if not done:
             self._note = " ".join(n[0].upper() + n[1:] + "." for n in notes)
         if done and not success:
-            outcome += f" The game is over: the 9-ball was not potted legally within {MAX_SHOTS} shots."
+            legally = "" if self.reference else " legally"
+            outcome += f" The game is over: the 9-ball was not potted{legally} within {MAX_SHOTS} shots."
         return StepResult(
             terminated=success,
             truncated=done and not success,  # the shots ran out
@@ -180,6 +203,15 @@ class PooltoolEnv(Environment):
             info=info,
         )
 
+    def _at(self, spot: tuple[float, float]) -> tuple[float, float]:
+        return spot[0] * self._system.table.w, spot[1] * self._system.table.l
+
+    def _respot_cue(self, words: str) -> str:
+        spot = self._at(HEAD_SPOT)
+        where = _free_spot(self._system, spot, "cue")
+        _place(self._system, "cue", where)
+        return f"{words} on the head spot" if where == spot else f"{words} next to the head spot (it was occupied)"
+
     # -- text -----------------------------------------------------------------------
 
     def _describe_shot(self, action, target, first_hit, potted, legal, reason, notes, truncated) -> str:
@@ -189,7 +221,10 @@ class PooltoolEnv(Environment):
         parts.append("potted: " + (", ".join(numbered) if numbered else "none"))
         if "cue" in potted:
             parts.append("the cue ball was potted (scratch)")
-        if legal:
+        if legal is None:  # reference rules: no fouls
+            if "9" in numbered:
+                parts.append("the 9-ball is down: game won")
+        elif legal:
             parts.append("legal shot")
             if "9" in numbered:
                 parts.append("the 9-ball is down: game won")

@@ -5,12 +5,36 @@ from deepphy.envs.pooltool.space import ACTIONS, MAX_SHOTS, SPEEDS, SPOT_OFFSETS
 from deepphy.prompts.base import EnvPrompt
 
 
+NINEBALL_GOAL = """Goal: pot the 9-ball on a legal shot, within {shots} shots in total. The 9-ball counts whenever
+it drops on a legal shot, even if other balls are still on the table (for example when the
+target ball knocks it in)."""
+NINEBALL_RULES = """Rules:
+- The cue ball must hit the target ball before any other ball.
+- After that contact, some ball must fall into a pocket or some ball must touch a cushion.
+- The cue ball must not fall into a pocket (a scratch).
+- The first shot is the break: it is legal if a ball is potted or at least four numbered
+  balls touch a cushion, and the cue ball stays on the table.
+Breaking any of these is a foul. A foul does not end the game: you get ball in hand, which
+here means the cue ball is placed on the head spot (or right next to it if a ball is in
+the way). Balls potted on a foul stay down, except the 9-ball, which is put back on the
+spot in the right half of the table."""
+REFERENCE_GOAL = """Goal: pot the 9-ball, within {shots} shots in total. Any shot that pots the 9-ball wins,
+even if other balls are still on the table or the shot would be a foul in real nine-ball."""
+REFERENCE_RULES = """Rules: there are no fouls and no break. The first shot starts from the head spot like any
+other. Potted balls stay down. If the cue ball falls into a pocket, it is put back on the
+head spot (or right next to it if a ball is in the way)."""
+
+
 class PooltoolPrompt(EnvPrompt):
     def rules(self, task: Task, observation: Observation) -> str:
         speeds = list(SPEEDS)
         speed_names = f"{', '.join(speeds[:-1])} or {speeds[-1]}"
         metres = f"{', '.join(f'{v:g}' for v in list(SPEEDS.values())[:-1])} or {list(SPEEDS.values())[-1]:g}"
         edge = SPOT_OFFSETS["top-centre"][1]  # the edge spots' distance from the centre, in ball radii
+        if task.params.get("rules") == "reference":
+            goal, rules = REFERENCE_GOAL.format(shots=MAX_SHOTS), REFERENCE_RULES
+        else:
+            goal, rules = NINEBALL_GOAL.format(shots=MAX_SHOTS), NINEBALL_RULES
         return f"""You are playing nine-ball pool alone ("{task.id}"), one shot at a time.
 
 The image is the table seen from directly above:
@@ -26,25 +50,14 @@ The image is the table seen from directly above:
   ball's path in white, each other ball's in its own colour).
 The text under the image lists the balls still on the table and their positions.
 
-Goal: pot the 9-ball on a legal shot, within {MAX_SHOTS} shots in total. The 9-ball counts whenever
-it drops on a legal shot, even if other balls are still on the table (for example when the
-target ball knocks it in).
+{goal}
 
 How a shot works: you do not aim. The cue is always pointed straight at the centre of the
 target (lowest-numbered) ball, as the dashed line shows. You choose only how hard to hit
 and where on the cue ball the cue tip strikes. You keep playing after every shot, whether
 or not you potted a ball.
 
-Rules:
-- The cue ball must hit the target ball before any other ball.
-- After that contact, some ball must fall into a pocket or some ball must touch a cushion.
-- The cue ball must not fall into a pocket (a scratch).
-- The first shot is the break: it is legal if a ball is potted or at least four numbered
-  balls touch a cushion, and the cue ball stays on the table.
-Breaking any of these is a foul. A foul does not end the game: you get ball in hand, which
-here means the cue ball is placed on the head spot (or right next to it if a ball is in
-the way). Balls potted on a foul stay down, except the 9-ball, which is put back on the
-spot in the right half of the table.
+{rules}
 
 Action syntax (one line): Speed: <speed>, Strikespot: <spot>
 - speed is {speed_names}: the cue hits the cue ball at {metres} metres per second.

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from deepphy.envs.images import FONT
-from deepphy.envs.pooltool.sim import _ball_params
+from deepphy.envs.pooltool.sim import FOOT_SPOT, HEAD_SPOT, _ball_params
 
 # -- rendering ------------------------------------------------------------------------
 
@@ -44,9 +44,10 @@ def render_table(system, *, target: str | None = None, traces: dict[str, np.ndar
     cv2.rectangle(img, _to_px(-cw, -cw), _to_px(table.w + cw, table.l + cw), CUSHION, -1)
     cv2.rectangle(img, _to_px(0, 0), _to_px(table.w, table.l), CLOTH, -1)
     # head string and the head / foot spots, faintly (ball in hand and respot places)
-    cv2.line(img, _to_px(0, table.l / 4), _to_px(table.w, table.l / 4), (60, 150, 95), 1, cv2.LINE_AA)
-    for spot in ((table.w / 2, table.l / 4), (table.w / 2, 3 * table.l / 4)):
-        cv2.circle(img, _to_px(*spot), 3, (60, 150, 95), -1, cv2.LINE_AA)
+    head = HEAD_SPOT[1] * table.l
+    cv2.line(img, _to_px(0, head), _to_px(table.w, head), (60, 150, 95), 1, cv2.LINE_AA)
+    for fx, fy in (HEAD_SPOT, FOOT_SPOT):
+        cv2.circle(img, _to_px(fx * table.w, fy * table.l), 3, (60, 150, 95), -1, cv2.LINE_AA)
     for seg in table.cushion_segments.linear.values():
         cv2.line(img, _to_px(seg.p1[0], seg.p1[1]), _to_px(seg.p2[0], seg.p2[1]), NOSE, 2, cv2.LINE_AA)
     for seg in table.cushion_segments.circular.values():

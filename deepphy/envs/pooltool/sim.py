@@ -15,6 +15,9 @@ from deepphy.envs.pooltool.space import SPEEDS
 from deepphy.seeding import seeded_rng
 
 MAX_EVENTS = 5000  # bounds rare, very long shots (balls set stationary after that many events)
+BREAK_POSITION = (0.85, 0.23)  # pooltool's nine-ball break position of the cue ball, as (x/w, y/l)
+HEAD_SPOT = (0.5, 0.25)  # ball in hand goes here (pooltool's ruleset does the same)
+FOOT_SPOT = (0.5, 0.75)  # a 9-ball potted on a foul is respotted here
 
 # -- pooltool, lazily -----------------------------------------------------------------
 
@@ -86,8 +89,9 @@ _JUMPS = [(-1.0, _S3), (2.0, 0.0), (1.0, _S3), (-2.0, 0.0), (-2.0, 0.0), (1.0, _
 _NINE_PLACE = 4  # index (after the apex) of the middle of the diamond
 
 
-def rack_layout(k: int) -> dict[str, tuple[float, float]]:
-    """Ball id -> (x, y) in metres for rack `k`, in the insertion order used (cue, 1..9)."""
+def rack_layout(k: int | str, cue: tuple[float, float] | None = None) -> dict[str, tuple[float, float]]:
+    """Ball id -> (x, y) in metres for rack `k`, in the insertion order used (cue, 1..9).
+    `cue`: the cue ball's place as fractions (of w, of l); default pooltool's break position."""
     pt = _pt()
     table = pt.Table.default()
     R = _ball_params().R
@@ -105,7 +109,8 @@ def rack_layout(k: int) -> dict[str, tuple[float, float]]:
         ang = 2 * math.pi * float(rng.random())
         rad = R * _SPACING * float(rng.random())
         where[ball_id] = (px + rad * math.cos(ang), py + rad * math.sin(ang))
-    out = {"cue": (0.85 * table.w, 0.23 * table.l)}
+    cx, cy = cue or BREAK_POSITION
+    out = {"cue": (cx * table.w, cy * table.l)}
     out.update({str(i): where[str(i)] for i in range(1, 10)})
     return out
 
@@ -116,7 +121,7 @@ def _ball_params():
     return pt.BallParams.default(game_type=pt.GameType.NINEBALL)
 
 
-def build_system(k: int):
+def build_system(k: int | str, cue: tuple[float, float] | None = None):
     """A fresh pooltool System for rack `k` (balls inserted in the fixed order cue, 1..9)."""
     import attrs
 
@@ -128,7 +133,7 @@ def build_system(k: int):
     ballset = get_ballset("pooltool_pocket")
     balls = {
         ball_id: pt.Ball.create(ball_id, xy=xy, ballset=ballset, **params)
-        for ball_id, xy in rack_layout(k).items()
+        for ball_id, xy in rack_layout(k, cue).items()
     }
     return pt.System(cue=pt.Cue(cue_ball_id="cue"), table=table, balls=balls)
 

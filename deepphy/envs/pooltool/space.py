@@ -30,6 +30,7 @@ SPOT_OFFSETS: dict[str, tuple[float, float]] = {
     "bottom-right": (-0.35, -0.35),
 }
 ACTIONS: tuple[tuple[str, str], ...] = tuple((s, p) for s in SPEEDS for p in SPOTS)  # the 27, in order
+REFERENCE_TRIES = 54  # the reference baseline redraws a shot already played this game up to this often
 
 
 # -- action space ---------------------------------------------------------------------
@@ -116,6 +117,17 @@ class PoolSpace(ActionSpace):
         speed = _last_valid(_parse_speed, [s for s, _ in speeds])
         spot = _last_valid(_parse_spot, spots)
         return PoolShot(speed=speed, spot=spot)
+
+    def reference_reply(self, rng: np.random.Generator, earlier: Sequence[str] = ()) -> str:
+        """The reference baseline: a uniform speed and spot, redrawn (up to REFERENCE_TRIES
+        times) while it is a shot already played in this game."""
+        played = set(earlier)
+        for _ in range(REFERENCE_TRIES):
+            speed, spot = ACTIONS[int(rng.integers(len(ACTIONS)))]
+            text = self.format(PoolShot(speed=speed, spot=spot))
+            if text not in played:
+                break
+        return text
 
     def sample(self, rng: np.random.Generator, exclude: Sequence[Action] = ()) -> PoolShot:
         # Uniform over all 27 shots. `exclude` (actions of earlier failed games) is ignored:
