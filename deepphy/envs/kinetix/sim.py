@@ -10,13 +10,14 @@ Batching is invisible: a record never depends on which episodes shared a batch.
   first episode (their results are dropped); a long one is cut into chunks of `BATCH`.
 - Lanes never interact: kinetix's control flow is `scan` and `switch`, which vmap turns
   into per-lane selects, so a lane's result depends only on its own state and action.
-- Programs of different batch shapes are not interchangeable. XLA:CPU contracts `a*b + c`
-  into fused multiply-adds, and which ones it contracts follows the shape-dependent
-  rewriting and fusion of the program. Measured (40 L levels x 16 random decisions): a
-  vmap over 1 lane rounds differently from vmaps over 2, 8 or 64 lanes (and from the
-  unbatched function) in 19 of 40 levels, from the first decision on, which made records
-  depend on the batch size whenever one episode happened to step alone. One shape removes
-  the question instead of relying on the other shapes agreeing.
+- Programs of different batch shapes are not interchangeable: XLA rewrites and fuses a
+  program according to its shapes, and XLA:CPU contracts `a*b + c` into fused
+  multiply-adds, so two programs need not round alike. Measured over 16 random decisions
+  per level: a vmap over 1 lane rounded differently from one over 8 lanes in 19 of 40 L
+  levels and 2 of 24 M levels (S: none), from the first decision on, so a record depended
+  on whether its episode happened to step alone. On L, vmaps over 2, 8 and 64 lanes and
+  the unbatched function agreed with each other, but nothing guarantees that; one shape
+  removes the question.
 
 Cost control:
 - Levels: kinetix's JSON loader is slow (0.1-2 s per level). The converted level
