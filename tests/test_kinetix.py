@@ -290,7 +290,7 @@ def test_step_many_equals_one_at_a_time():
     for _ in range(3):
         acts = [obs[i].action_space.sample(rng) for i in live]
         one = [single[i].step(a) for i, a in zip(live, acts)]
-        many = KinetixEnv.step_many([batched[i] for i in live], acts)  # buckets of 4 and 1
+        many = KinetixEnv.step_many([batched[i] for i in live], acts)  # one call, padded to sim.BATCH
         for i, a, b in zip(live, one, many):
             assert (a.done, a.success, a.feedback, a.info) == (b.done, b.success, b.feedback, b.info)
             assert a.key_frames[0].png == b.key_frames[0].png
@@ -316,17 +316,6 @@ def test_step_many_equals_one_at_a_time():
 )
 def test_known_good_medium_and_large_levels_match_kinetix(tid, actions, vectors):
     _check_known_good(tid, actions, vectors)
-
-
-def test_batches_are_cut_into_few_compiled_shapes():
-    from deepphy.envs.kinetix.sim import _chunks
-
-    for total in range(1, 200):
-        chunks = _chunks(total)
-        assert sum(real for _, _, real in chunks) == total
-        assert all(n in (1, 8, 64) and real <= n for _, n, real in chunks)
-        assert [start for start, _, _ in chunks] == list(np.cumsum([0] + [r for _, _, r in chunks])[:-1])
-    assert _chunks(5) == [(0, 8, 5)] and _chunks(2) == [(0, 1, 1), (1, 1, 1)]
 
 
 @pytest.mark.slow

@@ -117,7 +117,8 @@ class KinetixEnv(Environment):
 
     @classmethod
     def step_many(cls, envs: Sequence[Environment], actions: Sequence[Action]) -> list[StepResult]:
-        """Step several episodes: those of the same level size go through one vmapped call."""
+        """Step several episodes: those of the same level size go through the size's one compiled
+        batch function (`sim.BATCH` per call), so a result never depends on the company."""
         from deepphy.envs.kinetix import sim
 
         results: list[StepResult | None] = [None] * len(envs)

@@ -4,15 +4,29 @@ decision function per level size, batched (vmapped) stepping.
 Imported lazily by the environment (importing kinetix takes seconds and pulls in its
 whole training stack).
 
+Batching is invisible: a record never depends on which episodes shared a batch.
+- Every decision of a size, alone or in company, runs through ONE compiled program: the
+  decision function vmapped over `BATCH` lanes. A short batch is padded with copies of its
+  first episode (their results are dropped); a long one is cut into chunks of `BATCH`.
+- Lanes never interact: kinetix's control flow is `scan` and `switch`, which vmap turns
+  into per-lane selects, so a lane's result depends only on its own state and action.
+- Programs of different batch shapes are not interchangeable: XLA rewrites and fuses a
+  program according to its shapes, and XLA:CPU contracts `a*b + c` into fused
+  multiply-adds, so two programs need not round alike. Measured over 16 random decisions
+  per level: a vmap over 1 lane rounded differently from one over 8 lanes in 19 of 40 L
+  levels and 2 of 24 M levels (S: none), from the first decision on, so a record depended
+  on whether its episode happened to step alone. On L, vmaps over 2, 8 and 64 lanes and
+  the unbatched function agreed with each other, but nothing guarantees that; one shape
+  removes the question.
+
 Cost control:
 - Levels: kinetix's JSON loader is slow (0.1-2 s per level). The converted level
   (`jax.device_get(state)`, static and env params) is pickled once under
   `<cache root>/kinetix/levels/<kinetix version>/`; later loads take milliseconds.
 - Compilation: one jitted, vmapped "decision" function (16 env steps in a `lax.scan`) per
-  level size; the three sizes have one StaticEnvParams each, and all levels share their
-  EnvParams. Batches are cut into bucket shapes (64, 8, 1; a remainder of 3-7 is padded
-  to 8) so that a worker compiles at most three shapes per size, however many wait. The persistent JAX
-  compilation cache lives under `<cache root>/kinetix/jax/` and is shared by workers.
+  level size, compiled for the one shape `BATCH`; the three sizes have one StaticEnvParams
+  each, and all levels share their EnvParams. The persistent JAX compilation cache lives
+  under `<cache root>/kinetix/jax/` and is shared by workers.
 - Cache root: `$DEEPPHY_CACHE_DIR` or `~/.cache/deepphy`.
 """
 
@@ -33,8 +47,9 @@ import numpy as np
 from deepphy.cache import cache_root as deepphy_cache_root
 from deepphy.envs.kinetix.levels import STEPS_PER_DECISION, level_path
 
-BUCKETS = (64, 8, 1)  # batch shapes compiled per size (see `_chunks`)
-PAD_FROM = 3  # a remainder of 3..7 episodes is padded to 8 rather than stepped one by one
+# The one batch shape compiled per size (see the module doc). 8 balances the cost of a lone
+# episode (padded to 8 lanes) against throughput on many (benchmarks/kinetix_batching.py).
+BATCH = 8
 NUM_MOTOR_BINDINGS = 4
 NUM_THRUSTER_BINDINGS = 2
 
@@ -159,7 +174,9 @@ class Sim:
         env = self.env
         key = jax.random.PRNGKey(0)  # unused by kinetix when auto_reset is off
 
-        def one(state, action, env_params):
+        def decision(state, action, env_params):
+            """One episode's decision: 16 env steps, the state frozen once the episode ends."""
+
             def body(carry, _):
                 state, done, goal, reward, steps = carry
                 _, nxt, r, d, info = env.step(key, state, action, env_params)
@@ -175,25 +192,24 @@ class Sim:
             (state, done, goal, reward, steps), _ = jax.lax.scan(body, init, None, length=STEPS_PER_DECISION)
             return state, done, goal, reward, steps
 
-        self._fn = jax.jit(jax.vmap(one, in_axes=(0, 0, None)))
-        self._compiled: set[int] = set()
+        self.decision = decision  # unbatched and not jitted: for benchmarks and references
+        self._fn = jax.jit(jax.vmap(decision, in_axes=(0, 0, None)))  # only ever called with BATCH lanes
 
     def decide(self, states: list[Any], actions: np.ndarray) -> list[DecisionOut]:
-        """Run one decision for each (state, 6-vector action); batches go through vmap."""
+        """Run one decision for each (state, 6-vector action), `BATCH` episodes per call."""
         import jax
 
         assert len(states) == len(actions)
         outs: list[DecisionOut] = []
-        for start, n, real in _chunks(len(states)):
-            chunk = list(states[start : start + real])
-            acts = np.asarray(actions[start : start + real], np.int32)
-            if n > real:  # pad with copies of the first episode; their results are dropped
-                chunk += [chunk[0]] * (n - real)
-                acts = np.concatenate([acts, np.repeat(acts[:1], n - real, axis=0)])
+        for start in range(0, len(states), BATCH):
+            chunk = list(states[start : start + BATCH])
+            acts = np.asarray(actions[start : start + BATCH], np.int32)
+            real = len(chunk)
+            if real < BATCH:  # pad with copies of the first episode; their results are dropped
+                chunk += [chunk[0]] * (BATCH - real)
+                acts = np.concatenate([acts, np.repeat(acts[:1], BATCH - real, axis=0)])
             batch = jax.tree.map(lambda *xs: np.stack(xs), *chunk)
-            res = jax.device_get(self._fn(batch, acts, self.env_params))
-            self._compiled.add(n)
-            state, done, goal, reward, steps = res
+            state, done, goal, reward, steps = jax.device_get(self._fn(batch, acts, self.env_params))
             for k in range(real):
                 s = jax.tree.map(lambda x: x[k], state)
                 outs.append(
@@ -207,25 +223,6 @@ class Sim:
                     )
                 )
         return outs
-
-
-def _chunks(total: int) -> list[tuple[int, int, int]]:
-    """(start, bucket shape, real episodes) covering `total` episodes."""
-    out = []
-    start = 0
-    while start < total:
-        left = total - start
-        if left >= BUCKETS[0]:
-            n = real = BUCKETS[0]
-        elif left >= BUCKETS[1]:
-            n = real = BUCKETS[1]
-        elif left >= PAD_FROM:
-            n, real = BUCKETS[1], left
-        else:
-            n = real = 1
-        out.append((start, n, real))
-        start += real
-    return out
 
 
 _sims: dict[Any, Sim] = {}
