@@ -23,7 +23,7 @@ SPEC = EnvSpec(
     planning=Planning.ON_THE_FLY,
     max_attempts=1,
     max_steps=MAX_ACTIONS,
-    report=ReportSpec(stars=True, step_noun="action"),
+    report=ReportSpec(stars=True, step_noun="action", step_checkpoints=(1, 3, 5, 10)),
     solver="deepphy.envs.cuttherope.solve:main",
     description="88 levels in 5 boxes: cut ropes, pop bubbles, puff air so the candy reaches Om Nom; 0-3 stars",
 )

@@ -147,6 +147,10 @@ class World:
         world.bubbles = [Bubble(b.pos[0], b.pos[1]) for b in level.bubbles]
         world.active_pins = [ActivePin(a.pos[0], a.pos[1], a.radius) for a in level.active_pins]
         world.stars = [False] * len(level.stars)
+        probe = world.snapshot()  # what the ropes pull at t = 0 (for the picture and the text)
+        probe.advance(1)
+        for rope, probed in zip(world.ropes, probe.ropes):
+            rope.tension = probed.tension
         return world
 
     # -- snapshots (the oracle) -------------------------------------------------------------

@@ -7,10 +7,11 @@
         levels proven winnable, the stars of the stored plans, the best stars the search
         found, plan lengths, and how often the reference random agent wins. Seconds.
 
-    python -m deepphy.envs.cuttherope.solve search [--levels ...] [--budget S] [--jobs N] [--write]
-        Run the oracle search (oracle.py) on the stored levels from scratch, report what it
-        finds, and with --write store the best plan found where it has more stars than the
-        stored one (or the level has none). Minutes.
+    python -m deepphy.envs.cuttherope.solve search [--levels ...] [--nodes N] [--jobs N] [--write]
+        Run the oracle search (oracle.py) on the stored levels from scratch, with a budget
+        of N simulated moves per level (machine-independent), report what it finds, and
+        with --write store the best plan found where it has more stars than the stored one
+        (or the level has none). Minutes.
 
     python -m deepphy.envs.cuttherope.solve generate [--boxes 1,2] [--jobs N] [--nodes N]
         Remake the level files of the given boxes with the seeded procedures of design.py:
@@ -39,6 +40,7 @@ from deepphy.envs.cuttherope.sim import World, seconds_to_steps
 from deepphy.seeding import seeded_rng
 
 MAX_PROPOSALS = 60  # layouts tried per level before giving up
+SEARCH_NODES = 2000  # oracle budget per level for `search`, in simulated moves
 DESIGN_NODES = 1500  # oracle budget per proposal while designing, in simulated moves (machine-independent)
 REFERENCE_EPISODES = 100  # episodes of the reference random agent per level
 
@@ -172,18 +174,18 @@ def print_report(data: dict) -> None:
 # -- search ----------------------------------------------------------------------------------------
 
 
-def _search_job(args: tuple[str, float]) -> dict:
-    level_id, budget = args
+def _search_job(args: tuple[str, int]) -> dict:
+    level_id, nodes = args
     level = load_level(level_id)
-    found = search(level, budget_s=budget)
+    found = search(level, budget_s=math.inf, max_nodes=nodes)
     best = found.best
     return {"level": level_id, "found": best is not None, "stars": best.stars if best else None,
             "plan": best.texts if best else None, "nodes": found.nodes, "seconds": round(found.seconds, 1)}
 
 
-def run_search(ids: list[str], budget_s: float, jobs: int, write: bool) -> int:
+def run_search(ids: list[str], nodes: int, jobs: int, write: bool) -> int:
     with ProcessPoolExecutor(max_workers=jobs) as pool:
-        results = list(pool.map(_search_job, [(i, budget_s) for i in ids]))
+        results = list(pool.map(_search_job, [(i, nodes) for i in ids]))
     for r in results:
         print(f"{r['level']}: " + (f"{r['stars']} star(s) in {len(r['plan'])} actions {r['plan']}" if r["found"]
                                    else "no plan found") + f"  ({r['nodes']} moves, {r['seconds']} s)")
@@ -197,6 +199,11 @@ def run_search(ids: list[str], budget_s: float, jobs: int, write: bool) -> int:
                         actions=r["plan"], stars=check["stars"], best_stars=check["stars"])}))
             elif r["stars"] > stored.best_stars:
                 save_level(level.model_copy(update={"solution": stored.model_copy(update={"best_stars": r["stars"]})}))
+    for box in sorted({r["level"][:2] for r in results}):
+        rs = [r for r in results if r["level"].startswith(box)]
+        found = [r for r in rs if r["found"]]
+        print(f"box {box[1]}: plans for {len(found)} of {len(rs)} levels, {sum(r['stars'] for r in found)} stars, "
+              f"{sum(r['stars'] == 3 for r in found)} with 3 stars")
     print(f"found plans for {sum(r['found'] for r in results)} of {len(results)} levels")
     return 0
 
@@ -212,7 +219,7 @@ def main(argv: list[str] | None = None) -> int:
     rep.add_argument("--json", help="also write the report as JSON to this file")
     sea = sub.add_parser("search", help="run the oracle search on the stored levels")
     sea.add_argument("--levels")
-    sea.add_argument("--budget", type=float, default=30.0, help="seconds of search per level")
+    sea.add_argument("--nodes", type=int, default=SEARCH_NODES, help="search budget per level (simulated moves)")
     sea.add_argument("--jobs", type=int, default=1)
     sea.add_argument("--write", action="store_true", help="store plans with more stars than the stored ones")
     gen = sub.add_parser("generate", help="remake the level files of some boxes (design.py)")
@@ -235,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
             Path(args.json).write_text(json.dumps(data, indent=1) + "\n")
         return 0 if all(r["proven"] for r in data["levels"]) else 1
     if args.command == "search":
-        return run_search(ids, args.budget, args.jobs, args.write)
+        return run_search(ids, args.nodes, args.jobs, args.write)
     boxes = [int(b) for b in args.boxes.split(",")]
     if any(b not in BOXES for b in boxes):
         parser.error(f"boxes are {', '.join(map(str, BOXES))}")
