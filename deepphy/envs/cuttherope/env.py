@@ -65,30 +65,17 @@ class CutTheRopeEnv(Environment):
             return StepResult(terminated=True, invalid_reason=problem, feedback=f"invalid action: {problem}",
                               stars=0, info=self._info())
         self.actions += 1
-        words = apply(world, action)
-        if action.id is not None and action.name == "tap_air_cushion" and action.id not in self.tapped:
+        if action.name == "tap_air_cushion" and action.id not in self.tapped:
             self.tapped.append(action.id)
-        feedback = [f"{format_action(action)}: {words}" if words else format_action(action)]
+        words = act(world, action)
+        feedback = [f"{format_action(action)}: {words}", *_event_words(world)]
         truncated = False
-        if action.name == "fail":
-            world.status, world.reason = "lost", "you gave up with fail()"
-            world.events = []
-        elif action.name == "success":
+        if not world.decided and self.actions >= C.MAX_ACTIONS:
+            feedback.append(f"that was the last of {C.MAX_ACTIONS} actions: the world runs on "
+                            f"(at most {C.RUN_ON_CAP:g} s) to decide the outcome")
             world.run_on(seconds_to_steps(C.RUN_ON_CAP))
-            if not world.decided:
-                world.status = "lost"
-                world.reason = (f"success() was claimed, but Om Nom had not eaten the candy {C.RUN_ON_CAP:g} s later")
-        else:
-            seconds = action.seconds if action.name == "sleep" else C.ACTION_INTERVAL
-            world.advance(seconds_to_steps(seconds))
             feedback += _event_words(world)
-            if not world.decided and self.actions >= C.MAX_ACTIONS:
-                feedback.append(f"that was the last of {C.MAX_ACTIONS} actions: the world runs on "
-                                f"(at most {C.RUN_ON_CAP:g} s) to decide the outcome")
-                world.run_on(seconds_to_steps(C.RUN_ON_CAP))
-                truncated = not world.decided
-        if action.name == "success":
-            feedback += _event_words(world)
+            truncated = not world.decided
         won = world.status == "won"
         self.done = world.decided or truncated
         if world.decided:
@@ -166,21 +153,31 @@ def invalid_reason(world: World, action: CutAction) -> str | None:
     return None
 
 
-def apply(world: World, action: CutAction) -> str:
-    """Apply the instantaneous part of an action; returns what happened, in words."""
-    if action.name == "cut_pin":
-        return world.cut_pin(action.id)
-    if action.name == "cut_active_pin":
-        return world.cut_active_pin(action.id)
-    if action.name == "pop_bubble":
-        return world.pop_bubble(action.id)
-    if action.name == "tap_air_cushion":
-        return world.tap_air_cushion(action.id, action.times)
-    if action.name == "sleep":
-        return f"the world runs for {action.seconds:g} s"
+def act(world: World, action: CutAction) -> str:
+    """The rules of one (valid) action: apply it, then let the world run (ACTION_INTERVAL,
+    the sleep's seconds, or after success() until decided, at most RUN_ON_CAP). Returns what
+    the action did, in words; `world.events` holds what happened while the world ran."""
+    if action.name == "fail":
+        world.status, world.reason, world.events = "lost", "you gave up with fail()", []
+        return "you gave up the level"
     if action.name == "success":
+        world.run_on(seconds_to_steps(C.RUN_ON_CAP))
+        if not world.decided:
+            world.status = "lost"
+            world.reason = f"success() was claimed, but Om Nom had not eaten the candy {C.RUN_ON_CAP:g} s later"
         return f"you declared the level won: the world runs on (at most {C.RUN_ON_CAP:g} s) to decide"
-    return "you gave up the level"
+    if action.name == "sleep":
+        words = f"the world runs for {action.seconds:g} s"
+    elif action.name == "cut_pin":
+        words = world.cut_pin(action.id)
+    elif action.name == "cut_active_pin":
+        words = world.cut_active_pin(action.id)
+    elif action.name == "pop_bubble":
+        words = world.pop_bubble(action.id)
+    else:
+        words = world.tap_air_cushion(action.id, action.times)
+    world.advance(seconds_to_steps(action.seconds if action.name == "sleep" else C.ACTION_INTERVAL))
+    return words
 
 
 def format_action(action: CutAction) -> str:

@@ -4,12 +4,14 @@ A plan is a list of actions in the game's own vocabulary. The search builds it o
 "move" at a time: optionally a sleep (a grid of durations, `SEARCH_SLEEPS`), then one
 element action (cut a pin, cut an active pin, pop a bubble, tap a cushion 1/3/5 times).
 Every move is simulated from a snapshot of the world (`World.snapshot`, exact: the world
-rebuilds its pymunk space from its own state at every decision). After each move a
+rebuilds its pymunk space from its own state at every decision) by the environment's own
+rules (`env.act`). After each move a
 rollout lets the world run on without actions: if the candy reaches Om Nom the plan
 (+ `success()` when the win comes after the last action) is a solution. The best
 `beam` moves by a guide score (stars touched, closest approach to the mouth, halves'
-gap) go on to the next layer. The search stops at a time budget, after a 3-star plan,
-or when a plan would exceed the decision limit.
+gap) go on to the next layer. The search stops at its budget (seconds, or simulated moves
+for a result independent of the machine), after a 3-star plan, or when no plan can grow
+within the decision limit.
 
 Results are verified by replaying the plan's text through the environment itself
 (`replay`), so the stored plans are what a model's identical actions would do.
@@ -25,6 +27,7 @@ from typing import Callable
 import numpy as np
 
 from deepphy.envs.cuttherope import constants as C
+from deepphy.envs.cuttherope.env import act
 from deepphy.envs.cuttherope.level import Level
 from deepphy.envs.cuttherope.sim import World, seconds_to_steps
 from deepphy.envs.cuttherope.space import CutAction, CutSpace
@@ -32,21 +35,6 @@ from deepphy.envs.cuttherope.space import CutAction, CutSpace
 SEARCH_SLEEPS = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.3, 1.6, 2.0, 2.5, 3.0)  # sleep before a move (0: none)
 ROLLOUT = 4.0  # s the world runs on after a move to see where it leads (<= RUN_ON_CAP)
 SUCCESS = CutAction(name="success")
-
-
-def act(world: World, action: CutAction) -> None:
-    """What the environment does with a valid action (env.py keeps the same rules)."""
-    from deepphy.envs.cuttherope.env import apply
-
-    apply(world, action)
-    if action.name == "fail":
-        world.status, world.reason = "lost", "gave up"
-    elif action.name == "success":
-        world.run_on(seconds_to_steps(C.RUN_ON_CAP))
-        if not world.decided:
-            world.status = "lost"
-    else:
-        world.advance(seconds_to_steps(action.seconds if action.name == "sleep" else C.ACTION_INTERVAL))
 
 
 def moves(world: World) -> list[CutAction]:

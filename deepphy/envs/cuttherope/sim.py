@@ -75,7 +75,7 @@ class Candy:
         return C.HALF_MASS if self.half else C.CANDY_MASS
 
 
-@dataclass
+@dataclass(eq=False)  # ropes are told apart by identity
 class Rope:
     source: str  # "pin" or "active"
     sid: int  # id (1-based) of its pin or active pin
@@ -271,7 +271,7 @@ class World:
                 self._sync_space(space, bodies, joints)
         for rope, joint in joints:
             weight = self.candies[rope.candy].mass * C.GRAVITY
-            rope.tension = joint.impulse / C.DT / weight if rope in self.ropes else 0.0
+            rope.tension = joint.impulse / C.DT / weight if any(r is rope for r in self.ropes) else 0.0
         self.sync_bubbles()
 
     def run_on(self, max_steps: int) -> None:
@@ -285,11 +285,7 @@ class World:
         bodies: dict[int, pymunk.Body] = {}
         for i, c in enumerate(self.candies):
             if c.alive:
-                body = pymunk.Body(c.mass, math.inf)
-                body.position = (c.x, c.y)
-                body.velocity = (c.vx, c.vy)
-                space.add(body)
-                bodies[i] = body
+                bodies[i] = _add_body(space, c)
         joints = self._add_joints(space, bodies)
         self._set_buoyancy(bodies)
         return space, bodies, joints
@@ -323,11 +319,7 @@ class World:
                 bodies[i].velocity = (c.vx, c.vy)
         for i, c in enumerate(self.candies):
             if c.alive and i not in bodies:
-                body = pymunk.Body(c.mass, math.inf)
-                body.position = (c.x, c.y)
-                body.velocity = (c.vx, c.vy)
-                space.add(body)
-                bodies[i] = body
+                bodies[i] = _add_body(space, c)
         joints.extend(self._add_joints(space, bodies))
         self._set_buoyancy(bodies)
 
@@ -497,6 +489,15 @@ class World:
             if b.candy is not None and not b.popped:
                 c = self.candies[b.candy]
                 b.x, b.y = c.x, c.y
+
+
+def _add_body(space: pymunk.Space, candy: Candy) -> pymunk.Body:
+    """A candy's body: its mass, no rotation (ropes pull at its centre), no shape."""
+    body = pymunk.Body(candy.mass, math.inf)
+    body.position = (candy.x, candy.y)
+    body.velocity = (candy.vx, candy.vy)
+    space.add(body)
+    return body
 
 
 def _buoyant(body: pymunk.Body, gravity, damping: float, dt: float) -> None:
