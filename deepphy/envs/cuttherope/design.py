@@ -302,7 +302,7 @@ BOX_STAGES: dict[int, list[Stage]] = {
 }
 
 
-def proposal(box: int, stage: Stage, seed: int, rng: np.random.Generator) -> Level:
+def proposal(box: int, stage: Stage, rng: np.random.Generator) -> Level:
     """A layout of the stage; ValueError when its elements would overlap on the screen."""
     fields = stage.propose(rng)
     level = Level(id=f"b{box}_l01", title=stage.name, stars=PLACEHOLDER_STARS, **fields)

@@ -55,7 +55,7 @@ def design_one(box: int, stage_index: int, seed: int, nodes: int = DESIGN_NODES)
     for attempt in range(MAX_PROPOSALS):
         rng = seeded_rng("cuttherope-design", box, stage.name, seed, attempt)
         try:
-            level = proposal(box, stage, seed, rng)
+            level = proposal(box, stage, rng)
         except ValueError:  # pydantic's ValidationError included: an impossible layout
             continue
         idle = World.from_level(level)
