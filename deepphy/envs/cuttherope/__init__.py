@@ -1,0 +1,31 @@
+"""Cut the Rope: our own headless game on pymunk, 88 levels in five boxes, scored by the game.
+
+- `constants.py`: every number of the game (light);
+- `level.py`: the level format (pydantic) and the level files under `levels/` (light);
+- `space.py`: the action syntax, availability, MOCK's reference baseline (light);
+- `sim.py`: the world (state, element rules) and pymunk for the dynamics;
+- `render.py`: the OpenCV screenshot; `env.py`: the environment; `prompt.py`: the words;
+- `design.py`: the seeded layout procedures the level files were made with;
+- `solve.py`: the oracle (search for winning plans, replay, solvability report).
+Importing this package does not import pymunk.
+"""
+
+from deepphy.envs.base import Planning
+from deepphy.envs.cuttherope.constants import MAX_ACTIONS
+from deepphy.envs.cuttherope.space import CutAction, CutSpace
+from deepphy.envs.spec import EnvSpec, ReportSpec
+
+SPEC = EnvSpec(
+    name="cuttherope",
+    title="Cut the Rope",
+    environment="deepphy.envs.cuttherope.env:CutTheRopeEnv",
+    prompt="deepphy.envs.cuttherope.prompt:CutTheRopePrompt",
+    planning=Planning.ON_THE_FLY,
+    max_attempts=1,
+    max_steps=MAX_ACTIONS,
+    report=ReportSpec(stars=True, step_noun="action", step_checkpoints=(1, 3, 5, 10)),
+    solver="deepphy.envs.cuttherope.solve:main",
+    description="88 levels in 5 boxes: cut ropes, pop bubbles, puff air so the candy reaches Om Nom; 0-3 stars",
+)
+
+__all__ = ["SPEC", "CutAction", "CutSpace"]

@@ -1,0 +1,79 @@
+"""Every number of the Cut the Rope game, in one place.
+
+Units: the world is the screenshot. One unit is one pixel of the 480 x 720 image the model
+sees; x grows to the right, y grows DOWNWARD (screen coordinates), time is in seconds.
+The magnitudes start from the recovered web version of the game (a 320 x 480 map, see
+/work/shared/notes/games.md), scaled by 1.5 to our 480 x 720 screen, then tuned in play.
+Angles (air cushions, magic hats) are degrees counter-clockwise from "pointing right" as
+seen on the screen: 0 right, 90 up, 180 left, 270 down.
+
+Light module (no pymunk): the action space, the prompt and the level files read it.
+"""
+
+from __future__ import annotations
+
+# -- the screen and the clock ---------------------------------------------------------------
+WIDTH = 480  # world width = image width (units = pixels)
+HEIGHT = 720  # world height = image height
+DT = 0.01  # physics step (s); every time in the game is a whole number of steps
+STEPS_PER_SECOND = 100  # = 1 / DT, as an exact integer
+SOLVER_ITERATIONS = 30  # pymunk constraint iterations per step (ropes stay taut without jitter)
+GRAVITY = 825.0  # downward acceleration (units/s^2): ~550 map units/s^2 of the web game x 1.5
+
+# -- decisions ------------------------------------------------------------------------------
+MAX_ACTIONS = 10  # decisions per attempt (EnvSpec.max_steps)
+ACTION_INTERVAL = 1.0  # s the world runs after every action except sleep/success/fail, so its consequence shows
+SLEEP_MIN = 0.1  # sleep(seconds): the world runs exactly `seconds` (no extra interval) ...
+SLEEP_MAX = 10.0  # ... within [SLEEP_MIN, SLEEP_MAX] ...
+SLEEP_DECIMALS = 2  # ... written with at most 2 decimals (whole physics steps)
+TAP_TIMES = (1, 3, 5)  # tap_air_cushion(id, times): the allowed numbers of puffs
+RUN_ON_CAP = 10.0  # s the world runs on after success(), or after the last action, to decide the outcome
+SAMPLE_SLEEPS = (0.5, 1.0, 2.0)  # the sleeps ActionSpace.sample() draws from (uniform over a finite set)
+
+# -- the candy ------------------------------------------------------------------------------
+CANDY_RADIUS = 24.0  # a whole candy (the web game's ~37 x 35 map units)
+CANDY_MASS = 1.0
+HALF_RADIUS = 18.0  # each of the two candy halves of box 5
+HALF_MASS = 0.5  # two halves make one candy; momentum is conserved when they join
+OFFSCREEN_MARGIN = 60.0  # the candy is lost once its centre is this far outside the screen
+
+# -- Om Nom and stars -----------------------------------------------------------------------
+MOUTH_RADIUS = 30.0  # won when the (whole) candy's centre comes this close to Om Nom's mouth
+OMNOM_RADIUS = 40.0  # drawn body (the body itself does not collide)
+STAR_RADIUS = 20.0  # a star is collected when the candy's edge touches its circle
+
+# -- ropes, pins, active pins, spiders ------------------------------------------------------
+# A rope is one pymunk SlideJoint (0 <= distance <= length) from its pin to the candy: slack
+# when the candy is closer than the rope's length, taut (a pendulum) at that length; drawn as
+# a sagging curve when slack. Cutting it removes the joint: the candy keeps its velocity.
+PIN_RADIUS = 7.0  # drawn
+ROPE_TAUT_SLACK = 1.0  # a rope within this many units of its length is drawn straight (taut)
+TENSION_RED = 2.5  # rope tension, in candy weights, at which a rope is drawn fully red
+ACTIVE_PIN_MARGIN = 0.0  # an active pin attaches a rope when the candy centre is within radius + margin
+SPIDER_SPEED = 58.0  # units/s a spider crawls along its rope toward the candy (39 map units/s x 1.5)
+
+# -- bubbles --------------------------------------------------------------------------------
+BUBBLE_RADIUS = 36.0  # drawn
+BUBBLE_CAPTURE = 42.0  # a free bubble captures the candy whose centre comes this close (28 map units x 1.5)
+BUBBLE_RISE_SPEED = 105.0  # terminal rising speed of a bubble carrying the candy (units/s)
+BUBBLE_DRAG = 4.0  # 1/s: velocity relaxation toward the rising speed while in a bubble
+
+# -- air cushions ---------------------------------------------------------------------------
+PUFF_DELAY = 0.05  # s from the tap to the first puff ...
+PUFF_GAP = 0.05  # ... and between the puffs of one tap
+PUFF_SPEED = 300.0  # velocity change (units/s) a puff gives a candy right at the nozzle ...
+PUFF_RANGE = 312.0  # ... decaying linearly to 0 at this distance along the cushion's direction ...
+PUFF_WIDTH = 150.0  # ... and only inside a column this wide, centred on the cushion's axis
+CUSHION_SIZE = 30.0  # drawn
+
+# -- magic hats -----------------------------------------------------------------------------
+HAT_RADIUS = 30.0  # the candy enters a hat when its centre comes this close to the hat's opening while moving into it
+HAT_SPEED_FACTOR = 1.0  # exit speed / entry speed (the candy keeps its speed)
+HAT_EXIT_GAP = 4.0  # the candy leaves the paired hat's opening this far beyond the hat's zone
+
+# -- hazards --------------------------------------------------------------------------------
+HAZARD_REACH = 22.0  # a spike row or a live electric segment destroys the candy whose centre comes this close to its line
+SPIKE_TOOTH = 10.0  # drawn: height of the spike teeth on each side of the line
+
+# -- the picture ----------------------------------------------------------------------------
+TRAIL_EVERY = 5  # key frames trace the candy's path, one dot every 5 physics steps

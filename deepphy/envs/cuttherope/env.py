@@ -1,0 +1,285 @@
+"""Cut the Rope: 88 levels of our own design, played headless on pymunk, scored by the game.
+
+An attempt: the model sees the screenshot and the text state, chooses one action; the
+world, paused while it thinks, applies the action and then runs ACTION_INTERVAL seconds
+(sleep(s) runs s seconds instead), and the model sees the result. The game decides the
+outcome: won when Om Nom eats the candy, lost when the candy leaves the screen, touches a
+hazard or a spider reaches it. success() and the 10th action end the decisions: the world
+then runs on for up to RUN_ON_CAP seconds to decide (undecided after success(): a false
+claim, scored as a loss; undecided after the 10th action: truncated). fail() gives up.
+Stars = stars the candy touched, when the level is won (0 otherwise).
+"""
+
+from __future__ import annotations
+
+import math
+
+from deepphy.envs.base import Action, Environment, Observation, StepResult, Task
+from deepphy.envs.cuttherope import SPEC
+from deepphy.envs.cuttherope import constants as C
+from deepphy.envs.cuttherope.level import BOX_THEMES, Level, level_ids, load_level
+from deepphy.envs.cuttherope.render import render
+from deepphy.envs.cuttherope.sim import World, seconds_to_steps
+from deepphy.envs.cuttherope.space import CutAction, CutSpace
+from deepphy.envs.images import Image
+
+
+class CutTheRopeEnv(Environment):
+    spec = SPEC
+
+    def __init__(self, options=None) -> None:
+        super().__init__(options)
+        self.world: World | None = None
+        self.actions = 0
+        self.done = False
+        self.tapped: list[int] = []
+        self._initial: dict[str, Observation] = {}
+
+    @classmethod
+    def tasks(cls, options) -> list[Task]:
+        return [Task(env=SPEC.name, id=i, group=i.split("_")[0], params={"level": i}) for i in level_ids()]
+
+    # -- the contract ------------------------------------------------------------------------
+
+    def reset(self, task: Task) -> Observation:
+        level = load_level(task.params.get("level", task.id))
+        if task.id in self._initial:  # every attempt starts from the same scene: render it once
+            self.start(level, observe=False)
+        else:
+            self._initial[task.id] = self.start(level)
+        return self._initial[task.id]
+
+    def start(self, level: Level, observe: bool = True) -> Observation | None:
+        """Start an attempt of `level` (a level given as data, e.g. one being designed)."""
+        self.world = World.from_level(level)
+        self.actions, self.done, self.tapped = 0, False, []
+        return self.observation() if observe else None
+
+    def step(self, action: Action) -> StepResult:
+        assert self.world is not None and not self.done, "reset() first; the attempt is over"
+        assert isinstance(action, CutAction)
+        world = self.world
+        problem = invalid_reason(world, action)
+        if problem:
+            self.done = True
+            return StepResult(terminated=True, invalid_reason=problem, feedback=f"invalid action: {problem}",
+                              stars=0, info=self._info())
+        self.actions += 1
+        if action.name == "tap_air_cushion" and action.id not in self.tapped:
+            self.tapped.append(action.id)
+        words = act(world, action)
+        feedback = [f"{format_action(action)}: {words}", *_event_words(world)]
+        truncated = False
+        if not world.decided and self.actions >= C.MAX_ACTIONS:
+            feedback.append(f"that was the last of {C.MAX_ACTIONS} actions: the world runs on "
+                            f"(at most {C.RUN_ON_CAP:g} s) to decide the outcome")
+            world.run_on(seconds_to_steps(C.RUN_ON_CAP))
+            feedback += _event_words(world)
+            truncated = not world.decided
+        won = world.status == "won"
+        self.done = world.decided or truncated
+        if world.decided:
+            feedback.append(f"LEVEL {'WON' if won else 'LOST'} at t = {world.time:.2f} s: {world.reason}"
+                            + (f", with {world.stars_collected} of {len(world.level.stars)} stars" if won else ""))
+        elif truncated:
+            feedback.append(f"undecided after {C.RUN_ON_CAP:g} s more: the attempt ends unsolved")
+        else:
+            feedback.append(f"t = {world.time:.2f} s, stars {world.stars_collected}/{len(world.level.stars)}")
+        text = "; ".join(feedback)
+        banner = None
+        if world.decided:
+            banner = f"WON: {world.stars_collected} star(s)" if won else f"LOST: {world.reason}"
+        elif truncated:
+            banner = "not decided: out of actions"
+        frame = Image.from_array(
+            f"a{self.actions}",
+            f"the level after action {self.actions} ({format_action(action)}), t = {world.time:.2f} s; "
+            "magenta dots trace the candy's path",
+            render(world, trail=True, banner=banner[:60] if banner else None),
+        )
+        return StepResult(
+            terminated=world.decided,
+            truncated=truncated,
+            success=won,
+            observation=None if self.done else self.observation(),
+            feedback=text,
+            key_frames=[frame],
+            stars=(world.stars_collected if won else 0) if self.done else None,
+            info=self._info(),
+        )
+
+    # -- observation --------------------------------------------------------------------------
+
+    def space(self) -> CutSpace:
+        world = self.world
+        avail = world.available()
+        level = world.level
+        return CutSpace(num_pins=len(level.pins), num_active_pins=len(level.active_pins),
+                        num_bubbles=len(level.bubbles), num_cushions=len(level.cushions),
+                        pins=avail["pins"], active_pins=avail["active_pins"], bubbles=avail["bubbles"],
+                        cushions_tapped=sorted(self.tapped))
+
+    def observation(self) -> Observation:
+        world = self.world
+        image = Image.from_array(
+            "scene",
+            f"The level at t = {world.time:.2f} s. Yellow labels name what actions can use (P pins, A active pins, "
+            "B bubbles, C air cushions); white labels name magic hats (H) and electric barriers (E).",
+            render(world),
+        )
+        return Observation(images=[image], text=describe(world, self.actions), action_space=self.space())
+
+    def _info(self) -> dict:
+        w = self.world
+        return {"t": round(w.time, 2), "actions": self.actions, "status": w.status, "reason": w.reason,
+                "stars_touched": w.stars_collected}
+
+
+# -- shared with the oracle ---------------------------------------------------------------------------
+
+
+def invalid_reason(world: World, action: CutAction) -> str | None:
+    """Why `action` cannot be taken now (None if it can): the parser already checks this
+    for text; this guards actions built in code."""
+    avail = world.available()
+    field = {"cut_pin": "pins", "cut_active_pin": "active_pins", "pop_bubble": "bubbles",
+             "tap_air_cushion": "cushions"}.get(action.name)
+    if field and action.id not in avail[field]:
+        return f"{format_action(action)}: no such element can be used now"
+    if action.name == "tap_air_cushion" and action.times not in C.TAP_TIMES:
+        return f"times must be one of {C.TAP_TIMES}"
+    if action.name == "sleep" and not (action.seconds is not None and C.SLEEP_MIN <= action.seconds <= C.SLEEP_MAX):
+        return f"sleep must be within [{C.SLEEP_MIN:g}, {C.SLEEP_MAX:g}] s"
+    return None
+
+
+def act(world: World, action: CutAction) -> str:
+    """The rules of one (valid) action: apply it, then let the world run (ACTION_INTERVAL,
+    the sleep's seconds, or after success() until decided, at most RUN_ON_CAP). Returns what
+    the action did, in words; `world.events` holds what happened while the world ran."""
+    if action.name == "fail":
+        world.status, world.reason, world.events = "lost", "you gave up with fail()", []
+        return "you gave up the level"
+    if action.name == "success":
+        world.run_on(seconds_to_steps(C.RUN_ON_CAP))
+        if not world.decided:
+            world.status = "lost"
+            world.reason = f"success() was claimed, but Om Nom had not eaten the candy {C.RUN_ON_CAP:g} s later"
+        return f"you declared the level won: the world runs on (at most {C.RUN_ON_CAP:g} s) to decide"
+    if action.name == "sleep":
+        words = f"the world runs for {action.seconds:g} s"
+    elif action.name == "cut_pin":
+        words = world.cut_pin(action.id)
+    elif action.name == "cut_active_pin":
+        words = world.cut_active_pin(action.id)
+    elif action.name == "pop_bubble":
+        words = world.pop_bubble(action.id)
+    else:
+        words = world.tap_air_cushion(action.id, action.times)
+    world.advance(seconds_to_steps(action.seconds if action.name == "sleep" else C.ACTION_INTERVAL))
+    return words
+
+
+def format_action(action: CutAction) -> str:
+    return CutSpace().format(action)
+
+
+def _event_words(world: World) -> list[str]:
+    return [f"at t = {e.step / C.STEPS_PER_SECOND:.2f} s {e.text}" for e in world.events]
+
+
+def compass(angle: float) -> str:
+    names = ["right", "up-right", "up", "up-left", "left", "down-left", "down", "down-right"]
+    return names[int(round((angle % 360) / 45)) % 8]
+
+
+def _xy(p) -> str:
+    return f"({int(round(p[0]))}, {int(round(p[1]))})"
+
+
+def describe(world: World, actions_taken: int) -> str:
+    """The text state that goes with the screenshot."""
+    level: Level = world.level
+    lines = [f"Level {level.id} (box {level.box}: {BOX_THEMES[level.box]}). Time t = {world.time:.2f} s. "
+             f"Action {actions_taken + 1} of at most {C.MAX_ACTIONS}."]
+    carried = {b.candy: k for k, b in enumerate(world.bubbles, 1) if b.candy is not None and not b.popped}
+    candies = [(i, c) for i, c in enumerate(world.candies) if c.alive]
+    for n, (i, c) in enumerate(candies, 1):
+        name = f"Candy half {n}" if c.half else "Candy"
+        ropes = []
+        for r in world.ropes:
+            if r.candy != i:
+                continue
+            label = f"P{r.sid}" if r.source == "pin" else f"A{r.sid}"
+            d = math.hypot(c.x - r.ax, c.y - r.ay)
+            state = "taut" if r.length - d <= C.ROPE_TAUT_SLACK else "slack"
+            ropes.append(f"{label} ({state}, length {r.length:.0f}" + (f", tension {r.tension:.1f} candy weights)"
+                                                                     if state == "taut" else ")"))
+        held = "held by the ropes of " + ", ".join(ropes) if ropes else "held by no rope"
+        bubble = f"; inside bubble B{carried[i]}" if i in carried else ""
+        lines.append(f"{name}: at {_xy((c.x, c.y))}, velocity {_xy((c.vx, c.vy))} px/s; {held}{bubble}.")
+    whole = [c for _, c in candies if not c.half]
+    mouth = f"Om Nom's mouth: {_xy(level.om_nom)}"
+    if whole:
+        mouth += f", {math.dist(level.om_nom, (whole[0].x, whole[0].y)):.0f} px from the candy"
+    if level.halves and not whole:
+        mouth += " (he eats only a whole candy: join the two halves first)"
+    lines.append(mouth + ".")
+    left = [_xy(s) for k, s in enumerate(level.stars) if not world.stars[k]]
+    lines.append(f"Stars: {world.stars_collected} of {len(level.stars)} collected"
+                 + (f"; still to collect at {', '.join(left)}." if left else "."))
+    if level.pins:
+        parts = []
+        for k, p in enumerate(level.pins, 1):
+            r = world.rope_of_pin(k)
+            parts.append(f"P{k} {_xy(p.pos)} " + (f"rope attached (length {r.length:.0f})" if r else "no rope (cut)"))
+        lines.append("Pins: " + "; ".join(parts) + ".")
+    if world.active_pins:
+        words = {"armed": "waiting for the candy", "attached": "its rope holds the candy", "cut": "used (rope cut)",
+                 "removed": "removed"}
+        lines.append("Active pins: " + "; ".join(f"A{k} {_xy((a.x, a.y))} radius {a.radius:.0f}: {words[a.state]}"
+                                                 for k, a in enumerate(world.active_pins, 1)) + ".")
+    if world.bubbles:
+        parts = []
+        for k, b in enumerate(world.bubbles, 1):
+            if b.popped:
+                parts.append(f"B{k} popped")
+            else:
+                parts.append(f"B{k} at {_xy((b.x, b.y))} " + ("carrying the candy" if b.candy is not None else "empty"))
+        lines.append("Bubbles: " + "; ".join(parts) + ".")
+    if level.cushions:
+        lines.append("Air cushions: " + "; ".join(f"C{k} at {_xy(c.pos)} puffing {compass(c.angle)} ({c.angle:g} deg)"
+                                                  for k, c in enumerate(level.cushions, 1)) + ".")
+    if level.hats:
+        lines.append("Magic hats: " + "; ".join(
+            f"pair H{k}: opening at {_xy(p.hats[0].pos)} facing {compass(p.hats[0].angle)} and at "
+            f"{_xy(p.hats[1].pos)} facing {compass(p.hats[1].angle)}" for k, p in enumerate(level.hats, 1)) + ".")
+    if level.spikes:
+        lines.append("Spikes: " + "; ".join(f"from {_xy(s.a)} to {_xy(s.b)}" for s in level.spikes) + ".")
+    if level.electrics:
+        parts = []
+        for k, e in enumerate(level.electrics):
+            live = world.electric_live(k)
+            into = (world.time + e.phase) % e.period
+            switch = (e.on - into) if live else (e.period - into)
+            parts.append(f"E{k + 1} from {_xy(e.a)} to {_xy(e.b)}: {'LIVE' if live else 'off'} now, switches in "
+                         f"{switch:.2f} s (live {e.on:g} s of every {e.period:g} s)")
+        lines.append("Electric barriers: " + "; ".join(parts) + ".")
+    spiders = [s for s in world.spiders if not s.gone]
+    if spiders:
+        parts = []
+        for s in spiders:
+            waiting = world.time < s.delay
+            rope = world.rope_of_pin(s.pin)
+            left = (rope.length - s.crawled) / C.SPIDER_SPEED if rope else 0.0
+            parts.append(f"on the rope of P{s.pin}, {100 * world.spider_position(s):.0f}% of the way to the candy"
+                         + (f" (starts in {s.delay - world.time:.2f} s)" if waiting else
+                            f" (reaches it in {left:.1f} s unless that rope is cut)"))
+        lines.append("Spiders: " + "; ".join(parts) + ".")
+    avail = world.available()
+    acts = ([f"cut_pin({i})" for i in avail["pins"]] + [f"cut_active_pin({i})" for i in avail["active_pins"]]
+            + [f"pop_bubble({i})" for i in avail["bubbles"]]
+            + [f"tap_air_cushion({i}, times=1|3|5)" for i in avail["cushions"]])
+    lines.append("You can now: " + ", ".join(acts + [f"sleep({C.SLEEP_MIN:g}..{C.SLEEP_MAX:g})", "success()", "fail()"])
+                 + ".")
+    return "\n".join(lines)

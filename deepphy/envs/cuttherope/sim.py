@@ -1,0 +1,533 @@
+"""The Cut the Rope world: its state, the elements' rules, and pymunk for the dynamics.
+
+The state of a level in play is plain Python data (`World`): candies, ropes, bubbles,
+spiders, active pins, collected stars, scheduled puffs, the clock in physics steps.
+`World.advance(steps)` builds a pymunk space from that state (fixed order), steps it, and
+writes the state back. So a world restored from `snapshot()` continues exactly as the
+original would (the oracle's search relies on it), and nothing depends on a pymunk space
+living across decisions (the project's determinism rule: never copy a space).
+
+Dynamics (constants.py has every number):
+- a candy is a pymunk body (no shape: nothing collides with it) under gravity;
+- a rope is a SlideJoint from its pin to the candy centre, 0 <= distance <= length: slack
+  when the candy is closer, a taut pendulum at its length; cutting removes the joint, so
+  the candy flies on with the swing's velocity;
+- a bubble that captures the candy replaces gravity by a lift with drag (velocity relaxes
+  to BUBBLE_RISE_SPEED upward); it carries the candy until popped;
+- a puff of an air cushion changes the velocity of a candy inside the cushion's column, by
+  PUFF_SPEED at the nozzle decaying linearly to 0 at PUFF_RANGE;
+- a magic hat: the candy moving into a hat's opening leaves the paired hat's opening along
+  that hat's direction at HAT_SPEED_FACTOR x its speed; the ropes holding it snap;
+- spikes and live electric segments destroy the candy that comes within HAZARD_REACH;
+- a spider crawls from its pin along the rope at SPIDER_SPEED and takes the candy when it
+  arrives; cutting its rope removes it;
+- an active pin attaches a new rope (length = the distance at that moment) when a candy
+  centre enters its circle;
+- two halves join into one candy when they touch (momentum conserved, ropes and bubbles
+  kept); Om Nom eats only a whole candy.
+Contacts are checked along each step's path (segment distances), so fast candies do not
+tunnel through stars, hazards or the mouth.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+
+import pymunk
+
+from deepphy.envs.cuttherope import constants as C
+from deepphy.envs.cuttherope.level import Level
+
+PUFF_DELAY_STEPS = round(C.PUFF_DELAY * C.STEPS_PER_SECOND)
+PUFF_GAP_STEPS = round(C.PUFF_GAP * C.STEPS_PER_SECOND)
+
+
+def seconds_to_steps(seconds: float) -> int:
+    return round(seconds * C.STEPS_PER_SECOND)
+
+
+def direction(angle_deg: float) -> tuple[float, float]:
+    """Unit vector on the screen (y down) for an angle counter-clockwise from right."""
+    a = math.radians(angle_deg)
+    return math.cos(a), -math.sin(a)
+
+
+# -- state ------------------------------------------------------------------------------------
+
+
+@dataclass
+class Candy:
+    x: float
+    y: float
+    vx: float = 0.0
+    vy: float = 0.0
+    half: bool = False
+    alive: bool = True  # False once eaten, destroyed, lost, or joined into a whole candy
+
+    @property
+    def radius(self) -> float:
+        return C.HALF_RADIUS if self.half else C.CANDY_RADIUS
+
+    @property
+    def mass(self) -> float:
+        return C.HALF_MASS if self.half else C.CANDY_MASS
+
+
+@dataclass(eq=False)  # ropes are told apart by identity
+class Rope:
+    source: str  # "pin" or "active"
+    sid: int  # id (1-based) of its pin or active pin
+    ax: float  # anchor (the pin)
+    ay: float
+    length: float
+    candy: int  # index into World.candies
+    tension: float = 0.0  # in candy weights, at the end of the last advance
+
+
+@dataclass
+class Spider:
+    pin: int  # id of the pin whose rope it crawls down
+    delay: float  # s after the start before it moves
+    crawled: float = 0.0  # units from the pin along the rope
+    gone: bool = False  # its rope was cut or snapped
+
+
+@dataclass
+class Bubble:
+    x: float
+    y: float
+    candy: int | None = None  # the candy it carries
+    popped: bool = False
+
+
+@dataclass
+class ActivePin:
+    x: float
+    y: float
+    radius: float
+    state: str = "armed"  # armed -> attached -> cut; or armed -> removed (cut before it caught the candy)
+
+
+@dataclass
+class Event:
+    step: int
+    text: str
+
+
+@dataclass
+class World:
+    """One level in play. Build with `World.from_level(level)`."""
+
+    level: Level
+    step_count: int = 0
+    candies: list[Candy] = field(default_factory=list)
+    ropes: list[Rope] = field(default_factory=list)
+    spiders: list[Spider] = field(default_factory=list)
+    bubbles: list[Bubble] = field(default_factory=list)
+    active_pins: list[ActivePin] = field(default_factory=list)
+    stars: list[bool] = field(default_factory=list)  # collected?
+    puffs: list[tuple[int, int]] = field(default_factory=list)  # (step, cushion index) still to come
+    status: str = "playing"  # playing | won | lost
+    reason: str = ""  # how it was won or lost, in words
+    events: list[Event] = field(default_factory=list)  # what happened, for the feedback
+    trail: list[tuple[float, float]] = field(default_factory=list)  # candy positions during the last advance
+    min_mouth_distance: float = math.inf  # closest a whole candy came to the mouth (the oracle's guide)
+    min_join_gap: float = math.inf  # closest the two halves came, edge to edge (the oracle's guide)
+
+    @classmethod
+    def from_level(cls, level: Level) -> "World":
+        halves = level.halves
+        world = cls(level=level)
+        world.candies = [Candy(x=c.pos[0], y=c.pos[1], half=halves) for c in level.candies]
+        world.ropes = [Rope("pin", i, p.pos[0], p.pos[1], level.rope_length(i - 1), p.candy)
+                       for i, p in enumerate(level.pins, 1)]
+        world.spiders = [Spider(i, p.spider.delay) for i, p in enumerate(level.pins, 1) if p.spider]
+        world.bubbles = [Bubble(b.pos[0], b.pos[1]) for b in level.bubbles]
+        world.active_pins = [ActivePin(a.pos[0], a.pos[1], a.radius) for a in level.active_pins]
+        world.stars = [False] * len(level.stars)
+        probe = world.snapshot()  # what the ropes pull at t = 0 (for the picture and the text)
+        probe.advance(1)
+        for rope, probed in zip(world.ropes, probe.ropes):
+            rope.tension = probed.tension
+        return world
+
+    # -- snapshots (the oracle) -------------------------------------------------------------
+
+    def snapshot(self) -> "World":
+        """An independent copy that continues exactly as this world would."""
+        level, self.level = self.level, None  # levels are frozen: share, don't copy
+        try:
+            clone = copy.deepcopy(self)
+        finally:
+            self.level = level
+        clone.level = level
+        return clone
+
+    # -- queries ----------------------------------------------------------------------------
+
+    @property
+    def time(self) -> float:
+        return self.step_count / C.STEPS_PER_SECOND
+
+    @property
+    def decided(self) -> bool:
+        return self.status != "playing"
+
+    @property
+    def stars_collected(self) -> int:
+        return sum(self.stars)
+
+    def rope_of_pin(self, pin: int) -> Rope | None:
+        return next((r for r in self.ropes if r.source == "pin" and r.sid == pin), None)
+
+    def rope_of_active_pin(self, pin: int) -> Rope | None:
+        return next((r for r in self.ropes if r.source == "active" and r.sid == pin), None)
+
+    def available(self) -> dict[str, list[int]]:
+        """Ids that an action can name now: pins whose rope is still attached, active pins
+        not yet cut (waiting or holding a rope), bubbles not popped, every air cushion."""
+        return {
+            "pins": sorted(r.sid for r in self.ropes if r.source == "pin"),
+            "active_pins": [i for i, a in enumerate(self.active_pins, 1) if a.state in ("armed", "attached")],
+            "bubbles": [i for i, b in enumerate(self.bubbles, 1) if not b.popped],
+            "cushions": list(range(1, len(self.level.cushions) + 1)),
+        }
+
+    def electric_live(self, index: int, step: int | None = None) -> bool:
+        e = self.level.electrics[index]
+        t = (self.step_count if step is None else step) / C.STEPS_PER_SECOND
+        return (t + e.phase) % e.period < e.on
+
+    def spider_position(self, spider: Spider) -> float:
+        """Fraction of its rope the spider has crawled (0 at the pin, 1 at the candy)."""
+        rope = self.rope_of_pin(spider.pin)
+        return min(1.0, spider.crawled / rope.length) if rope and rope.length > 0 else 0.0
+
+    # -- actions ----------------------------------------------------------------------------
+
+    def cut_pin(self, pin: int) -> str:
+        rope = self.rope_of_pin(pin)
+        assert rope is not None, f"pin {pin} has no rope"
+        self.ropes.remove(rope)
+        words = f"the rope of pin P{pin} is cut"
+        for s in self.spiders:
+            if s.pin == pin and not s.gone:
+                s.gone = True
+                words += " (its spider falls away)"
+        return words
+
+    def cut_active_pin(self, pin: int) -> str:
+        active = self.active_pins[pin - 1]
+        if active.state == "attached":
+            rope = self.rope_of_active_pin(pin)
+            if rope is not None:
+                self.ropes.remove(rope)
+            active.state = "cut"
+            return f"the rope of active pin A{pin} is cut"
+        assert active.state == "armed", f"active pin {pin} is {active.state}"
+        active.state = "removed"
+        return f"active pin A{pin} is removed before it caught the candy"
+
+    def pop_bubble(self, bubble: int) -> str:
+        b = self.bubbles[bubble - 1]
+        assert not b.popped, f"bubble {bubble} is already popped"
+        b.popped = True
+        held, b.candy = b.candy, None
+        return f"bubble B{bubble} pops" + (" and releases the candy" if held is not None else " (it held nothing)")
+
+    def tap_air_cushion(self, cushion: int, times: int) -> str:
+        first = self.step_count + PUFF_DELAY_STEPS
+        self.puffs += [(first + k * PUFF_GAP_STEPS, cushion - 1) for k in range(times)]
+        self.puffs.sort()
+        return f"air cushion C{cushion} puffs {times} time{'s' if times > 1 else ''}"
+
+    # -- dynamics ---------------------------------------------------------------------------
+
+    def advance(self, steps: int) -> None:
+        """Run the world for `steps` physics steps, or until the outcome is decided."""
+        self.events = []
+        self.trail = []
+        if self.decided or steps <= 0:
+            return
+        space, bodies, joints = self._build_space()
+        end = self.step_count + steps
+        while self.step_count < end and not self.decided:
+            self._apply_puffs(bodies)
+            before = [(c.x, c.y) for c in self.candies]
+            space.step(C.DT)
+            self.step_count += 1
+            for i, body in bodies.items():
+                c = self.candies[i]
+                c.x, c.y = body.position
+                c.vx, c.vy = body.velocity
+            changed = self._rules(before)
+            if self.step_count % C.TRAIL_EVERY == 0 or self.decided:
+                self.trail += [(self.candies[i].x, self.candies[i].y) for i in bodies]  # alive at the step's start
+            if self.decided:
+                break
+            if changed:
+                self._sync_space(space, bodies, joints)
+        for rope, joint in joints:
+            weight = self.candies[rope.candy].mass * C.GRAVITY
+            rope.tension = joint.impulse / C.DT / weight if any(r is rope for r in self.ropes) else 0.0
+        self.sync_bubbles()
+
+    def run_on(self, max_steps: int) -> None:
+        """Run without actions until the outcome is decided or `max_steps` have passed."""
+        self.advance(max_steps)
+
+    def _build_space(self):
+        space = pymunk.Space()
+        space.gravity = (0.0, C.GRAVITY)
+        space.iterations = C.SOLVER_ITERATIONS
+        bodies: dict[int, pymunk.Body] = {}
+        for i, c in enumerate(self.candies):
+            if c.alive:
+                bodies[i] = _add_body(space, c)
+        joints = self._add_joints(space, bodies)
+        self._set_buoyancy(bodies)
+        return space, bodies, joints
+
+    def _add_joints(self, space: pymunk.Space, bodies: dict[int, pymunk.Body]) -> list[tuple[Rope, pymunk.SlideJoint]]:
+        joints = []
+        for rope in self.ropes:
+            joint = pymunk.SlideJoint(space.static_body, bodies[rope.candy], (rope.ax, rope.ay), (0.0, 0.0),
+                                      0.0, rope.length)
+            space.add(joint)
+            joints.append((rope, joint))
+        return joints
+
+    def _set_buoyancy(self, bodies: dict[int, pymunk.Body]) -> None:
+        carried = {b.candy for b in self.bubbles if b.candy is not None and not b.popped}
+        for i, body in bodies.items():
+            body.velocity_func = _buoyant if i in carried else pymunk.Body.update_velocity
+
+    def _sync_space(self, space: pymunk.Space, bodies: dict[int, pymunk.Body], joints: list) -> None:
+        """After a rule changed ropes, bubbles or candies: make the space match the state
+        (positions and velocities of bodies that stay are kept as they are)."""
+        for _, joint in joints:
+            space.remove(joint)
+        joints.clear()
+        for i in list(bodies):
+            c = self.candies[i]
+            if not c.alive:
+                space.remove(bodies.pop(i))
+            else:  # a teleport may have moved it
+                bodies[i].position = (c.x, c.y)
+                bodies[i].velocity = (c.vx, c.vy)
+        for i, c in enumerate(self.candies):
+            if c.alive and i not in bodies:
+                bodies[i] = _add_body(space, c)
+        joints.extend(self._add_joints(space, bodies))
+        self._set_buoyancy(bodies)
+
+    def _apply_puffs(self, bodies: dict[int, pymunk.Body]) -> None:
+        while self.puffs and self.puffs[0][0] <= self.step_count:
+            _, k = self.puffs.pop(0)
+            cushion = self.level.cushions[k]
+            dx, dy = direction(cushion.angle)
+            for i, body in bodies.items():
+                px, py = body.position
+                rx, ry = px - cushion.pos[0], py - cushion.pos[1]
+                along = rx * dx + ry * dy
+                across = abs(rx * dy - ry * dx)
+                if 0.0 <= along <= C.PUFF_RANGE and across <= C.PUFF_WIDTH / 2:
+                    dv = C.PUFF_SPEED * (1.0 - along / C.PUFF_RANGE)
+                    vx, vy = body.velocity
+                    body.velocity = (vx + dv * dx, vy + dv * dy)
+                    c = self.candies[i]
+                    c.vx, c.vy = body.velocity
+
+    # -- the rules, checked after every physics step --------------------------------------------
+
+    def _event(self, text: str) -> None:
+        self.events.append(Event(self.step_count, text))
+
+    def _lose(self, reason: str) -> None:
+        self.status, self.reason = "lost", reason
+        self._event(reason)
+
+    def _rules(self, before: list[tuple[float, float]]) -> bool:
+        """Apply every element's rule along the step's paths; True when ropes, bubbles or
+        candies changed so that the pymunk space must be rebuilt."""
+        level = self.level
+        changed = False
+        t = self.step_count
+        alive = [i for i, c in enumerate(self.candies) if c.alive]
+        paths = {i: (before[i], (self.candies[i].x, self.candies[i].y)) for i in alive}
+        what = "a candy half" if level.halves else "the candy"
+
+        for i in alive:  # hazards and the edge of the screen
+            (p, q), c = paths[i], self.candies[i]
+            for s in level.spikes:
+                if _segment_distance(p, q, s.a, s.b) < C.HAZARD_REACH:
+                    c.alive = False
+                    self._lose(f"{what} hit spikes")
+                    return True
+            for k, e in enumerate(level.electrics):
+                if self.electric_live(k, t) and _segment_distance(p, q, e.a, e.b) < C.HAZARD_REACH:
+                    c.alive = False
+                    self._lose(f"{what} hit a live electric barrier")
+                    return True
+            m = C.OFFSCREEN_MARGIN
+            if not (-m <= c.x <= C.WIDTH + m and -m <= c.y <= C.HEIGHT + m):
+                c.alive = False
+                self._lose(f"{what} left the screen")
+                return True
+
+        for s in self.spiders:  # spiders crawl toward the candy
+            if s.gone or t < seconds_to_steps(s.delay):
+                continue
+            rope = self.rope_of_pin(s.pin)
+            if rope is None:
+                s.gone = True
+                continue
+            s.crawled += C.SPIDER_SPEED * C.DT
+            if s.crawled >= rope.length:
+                self.candies[rope.candy].alive = False
+                self._lose(f"the spider on the rope of P{s.pin} reached {what} and took it")
+                return True
+
+        for i in alive:
+            (p, q), c = paths[i], self.candies[i]
+            for k, star in enumerate(level.stars):  # stars
+                if not self.stars[k] and _point_segment_distance(star, p, q) < C.STAR_RADIUS + c.radius:
+                    self.stars[k] = True
+                    self._event(f"star collected ({sum(self.stars)} of {len(self.stars)})")
+            if not any(b.candy == i for b in self.bubbles if not b.popped):  # bubbles capture
+                for k, b in enumerate(self.bubbles):
+                    if not b.popped and b.candy is None and _point_segment_distance((b.x, b.y), p, q) < C.BUBBLE_CAPTURE:
+                        b.candy = i
+                        changed = True
+                        self._event(f"bubble B{k + 1} captured {what}")
+                        break
+            for pair_index, pair in enumerate(level.hats):  # magic hats
+                for h, hat in enumerate(pair.hats):
+                    hx, hy = direction(hat.angle)
+                    if c.vx * hx + c.vy * hy >= 0.0:
+                        continue  # moving away from (or along) the opening
+                    if _point_segment_distance(hat.pos, p, q) >= C.HAT_RADIUS:
+                        continue
+                    out = pair.hats[1 - h]
+                    ox, oy = direction(out.angle)
+                    speed = math.hypot(c.vx, c.vy) * C.HAT_SPEED_FACTOR
+                    gap = C.HAT_RADIUS + c.radius + C.HAT_EXIT_GAP
+                    c.x, c.y = out.pos[0] + ox * gap, out.pos[1] + oy * gap
+                    c.vx, c.vy = speed * ox, speed * oy
+                    snapped = [r for r in self.ropes if r.candy == i]
+                    for r in snapped:
+                        self._drop_rope(r)
+                    self._event(f"{what} went through magic hat pair {pair_index + 1}"
+                                + (" (its ropes snapped)" if snapped else ""))
+                    paths[i] = ((c.x, c.y), (c.x, c.y))
+                    changed = True
+                    break
+                else:
+                    continue
+                break
+            for k, a in enumerate(self.active_pins):  # active pins
+                if a.state == "armed" and math.hypot(c.x - a.x, c.y - a.y) <= a.radius + C.ACTIVE_PIN_MARGIN:
+                    a.state = "attached"
+                    self.ropes.append(Rope("active", k + 1, a.x, a.y, math.hypot(c.x - a.x, c.y - a.y), i))
+                    changed = True
+                    self._event(f"active pin A{k + 1} attached a rope to {what}")
+
+        halves = [i for i in alive if self.candies[i].half and self.candies[i].alive]
+        if len(halves) == 2:  # the halves join
+            a, b = (self.candies[i] for i in halves)
+            gap = math.hypot(a.x - b.x, a.y - b.y) - a.radius - b.radius
+            self.min_join_gap = min(self.min_join_gap, gap)
+            if gap < 0.0:
+                self._join(*halves)
+                changed = True
+
+        for i, c in enumerate(self.candies):  # Om Nom
+            if c.alive and not c.half:
+                p = paths.get(i, ((c.x, c.y), (c.x, c.y)))[0]
+                d = _point_segment_distance(level.om_nom, p, (c.x, c.y))
+                self.min_mouth_distance = min(self.min_mouth_distance, d)
+                if d < C.MOUTH_RADIUS:
+                    c.alive = False
+                    self.status, self.reason = "won", "Om Nom ate the candy"
+                    self._event(self.reason)
+                    return True
+        return changed
+
+    def _drop_rope(self, rope: Rope) -> None:
+        self.ropes.remove(rope)
+        if rope.source == "active":
+            self.active_pins[rope.sid - 1].state = "cut"
+        for s in self.spiders:
+            if rope.source == "pin" and s.pin == rope.sid:
+                s.gone = True
+
+    def _join(self, i: int, j: int) -> None:
+        a, b = self.candies[i], self.candies[j]
+        m = a.mass + b.mass
+        whole = Candy(x=(a.x * a.mass + b.x * b.mass) / m, y=(a.y * a.mass + b.y * b.mass) / m,
+                      vx=(a.vx * a.mass + b.vx * b.mass) / m, vy=(a.vy * a.mass + b.vy * b.mass) / m)
+        a.alive = b.alive = False
+        self.candies.append(whole)
+        k = len(self.candies) - 1
+        for r in self.ropes:
+            if r.candy in (i, j):
+                r.candy = k
+                r.length = max(r.length, math.hypot(whole.x - r.ax, whole.y - r.ay))
+        carrying = [bb for bb in self.bubbles if not bb.popped and bb.candy in (i, j)]
+        for n, bb in enumerate(carrying):
+            if n == 0:
+                bb.candy = k
+            else:  # one bubble carries the joined candy; the other bursts
+                bb.popped, bb.candy = True, None
+        self._event("the two halves joined into one candy")
+
+    def sync_bubbles(self) -> None:
+        """Bubbles carrying a candy sit on it (for drawing and the text)."""
+        for b in self.bubbles:
+            if b.candy is not None and not b.popped:
+                c = self.candies[b.candy]
+                b.x, b.y = c.x, c.y
+
+
+def _add_body(space: pymunk.Space, candy: Candy) -> pymunk.Body:
+    """A candy's body: its mass, no rotation (ropes pull at its centre), no shape."""
+    body = pymunk.Body(candy.mass, math.inf)
+    body.position = (candy.x, candy.y)
+    body.velocity = (candy.vx, candy.vy)
+    space.add(body)
+    return body
+
+
+def _buoyant(body: pymunk.Body, gravity, damping: float, dt: float) -> None:
+    """Velocity update inside a bubble: gravity replaced by a lift, with drag, so the
+    velocity relaxes to BUBBLE_RISE_SPEED upward."""
+    lift = -C.BUBBLE_DRAG * C.BUBBLE_RISE_SPEED
+    pymunk.Body.update_velocity(body, (0.0, lift), math.exp(-C.BUBBLE_DRAG * dt), dt)
+
+
+def _point_segment_distance(p, a, b) -> float:
+    ax, ay = a
+    dx, dy = b[0] - ax, b[1] - ay
+    px, py = p[0] - ax, p[1] - ay
+    n = dx * dx + dy * dy
+    t = 0.0 if n == 0.0 else max(0.0, min(1.0, (px * dx + py * dy) / n))
+    return math.hypot(px - t * dx, py - t * dy)
+
+
+def _segment_distance(p, q, a, b) -> float:
+    """Distance between segments pq and ab."""
+    if _segments_cross(p, q, a, b):
+        return 0.0
+    return min(_point_segment_distance(p, a, b), _point_segment_distance(q, a, b),
+               _point_segment_distance(a, p, q), _point_segment_distance(b, p, q))
+
+
+def _segments_cross(p, q, a, b) -> bool:
+    def orient(o, u, v):
+        return (u[0] - o[0]) * (v[1] - o[1]) - (u[1] - o[1]) * (v[0] - o[0])
+
+    d1, d2 = orient(a, b, p), orient(a, b, q)
+    d3, d4 = orient(p, q, a), orient(p, q, b)
+    return ((d1 > 0) != (d2 > 0)) and ((d3 > 0) != (d4 > 0)) and d1 != 0 and d2 != 0 and d3 != 0 and d4 != 0

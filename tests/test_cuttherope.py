@@ -1,0 +1,550 @@
+"""Cut the Rope (deepphy/envs/cuttherope): the elements' physics, the rules of an attempt,
+the action syntax, the observation, the level files, determinism. The stored plans of all
+88 levels are replayed in test_cuttherope_levels.py.
+
+Physics tests build small levels in code and assert what pymunk and the element rules make
+of them; nothing here scripts an outcome."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from deepphy.envs import ActionSpace, InvalidAction, Task, get_spec
+from deepphy.envs.cuttherope import constants as C
+from deepphy.envs.cuttherope.level import BOXES, Level, level_ids, load_level
+from deepphy.envs.cuttherope.space import CutAction, CutSpace
+
+STEP = 1.0 / C.STEPS_PER_SECOND
+
+
+def make(**fields) -> Level:
+    fields.setdefault("stars", [(470, 10), (470, 20), (470, 30)])  # out of the way
+    fields.setdefault("om_nom", (440, 690))
+    return Level(id="b1_l01", **fields)
+
+
+def world_of(level: Level):
+    from deepphy.envs.cuttherope.sim import World
+
+    return World.from_level(level)
+
+
+def env_of(level: Level):
+    from deepphy.envs.cuttherope.env import CutTheRopeEnv
+
+    env = CutTheRopeEnv()
+    return env, env.start(level)
+
+
+def play(env, obs, texts):
+    result = None
+    for text in texts:
+        result = env.step(obs.action_space.parse(text))
+        if result.done:
+            break
+        obs = result.observation
+    return result
+
+
+# -- registration and levels ---------------------------------------------------------------------------
+
+
+def test_registered_with_88_levels_in_five_boxes():
+    spec = get_spec("cuttherope")
+    assert spec.max_attempts == 1 and spec.max_steps == C.MAX_ACTIONS == 10 and spec.report.stars
+    cls = spec.load()
+    tasks = cls.tasks(cls.Options())
+    assert [t.id for t in tasks] == level_ids()
+    assert Counter(t.group for t in tasks) == {"b1": 24, "b2": 23, "b3": 7, "b4": 15, "b5": 19}
+    assert tasks[0].id == "b1_l01" and tasks[-1].id == "b5_l19"
+
+
+def test_package_import_stays_light():
+    code = ("import sys, deepphy.envs.cuttherope, deepphy.envs.cuttherope.level, deepphy.envs.cuttherope.prompt;"
+            "print('pymunk' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
+
+
+def test_every_level_file_validates_and_each_box_has_its_mechanics():
+    levels = [load_level(i) for i in level_ids()]
+    assert len(levels) == sum(BOXES.values()) == 88
+    by_box = {b: [lv for lv in levels if lv.box == b] for b in BOXES}
+    assert all(lv.solution is not None and 1 <= len(lv.solution.actions) <= C.MAX_ACTIONS for lv in levels)
+    assert any(lv.bubbles for lv in by_box[1]) and any(lv.spikes for lv in by_box[1])
+    assert not any(lv.cushions or lv.hats or lv.active_pins or lv.halves for lv in by_box[1])
+    assert any(lv.cushions for lv in by_box[2]) and any(p.spider for lv in by_box[2] for p in lv.pins)
+    assert all(lv.active_pins for lv in by_box[3])
+    assert all(lv.hats for lv in by_box[4]) and any(lv.electrics for lv in by_box[4])
+    assert all(lv.halves for lv in by_box[5]) and not any(lv.halves for lv in levels if lv.box < 5)
+
+
+# -- physics, one element at a time --------------------------------------------------------------------
+
+
+def test_cut_rope_releases_the_candy_with_its_swing_velocity():
+    # A pendulum released from horizontal: at the bottom v = sqrt(2 g L) (pymunk, not scripted).
+    L = 150.0
+    w = world_of(make(candies=[{"pos": (240 + L, 200)}], pins=[{"pos": (240, 200)}]))
+    prev = None
+    while True:  # to the lowest point of the swing
+        w.advance(1)
+        c = w.candies[0]
+        if prev is not None and c.vy <= 0 < prev:
+            break
+        prev = c.vy
+    c = w.candies[0]
+    speed = math.hypot(c.vx, c.vy)
+    assert abs(c.x - 240) < 8 and speed == pytest.approx(math.sqrt(2 * C.GRAVITY * L), rel=0.03)
+    x0, y0, vx0, vy0 = c.x, c.y, c.vx, c.vy
+    w.cut_pin(1)
+    w.advance(20)  # 0.2 s of free flight: a parabola from the release point and velocity
+    t = 20 * STEP
+    assert w.candies[0].x == pytest.approx(x0 + vx0 * t, abs=0.5)
+    assert w.candies[0].y == pytest.approx(y0 + vy0 * t + 0.5 * C.GRAVITY * t * t, abs=2.0)
+    held = world_of(make(candies=[{"pos": (240 + L, 200)}], pins=[{"pos": (240, 200)}]))
+    held.advance(w.step_count)
+    stretch = math.dist((held.candies[0].x, held.candies[0].y), (240, 200)) - L
+    assert -0.5 < stretch < 2.0  # still held at the rope's length (a little stretched while it pulls ~3 g)
+
+
+def test_a_taut_rope_holds_and_is_drawn_redder_the_more_it_pulls():
+    w = world_of(make(candies=[{"pos": (240, 300)}], pins=[{"pos": (140, 200)}, {"pos": (340, 200)}]))
+    w.advance(50)
+    expected = 1 / (2 * math.cos(math.radians(45)))  # two ropes at 45 degrees carry the weight
+    assert [r.tension for r in w.ropes] == pytest.approx([expected, expected], rel=0.02)
+    assert (w.candies[0].x, w.candies[0].y) == pytest.approx((240, 300), abs=0.5)
+
+
+def test_a_bubble_catches_and_lifts_the_candy_until_popped():
+    w = world_of(make(candies=[{"pos": (240, 200)}], bubbles=[{"pos": (240, 330)}]))
+    w.advance(100)
+    assert w.bubbles[0].candy == 0
+    w.advance(200)
+    c = w.candies[0]
+    assert c.vy == pytest.approx(-C.BUBBLE_RISE_SPEED, rel=0.02) and abs(c.vx) < 1e-6
+    assert (w.bubbles[0].x, w.bubbles[0].y) == (c.x, c.y)
+    y = c.y
+    w.pop_bubble(1)
+    w.advance(30)
+    assert w.candies[0].vy > 0 and w.bubbles[0].popped and w.candies[0].y < y + 30  # falls again
+
+
+@pytest.mark.parametrize("angle", [0, 30, 90, 225])
+def test_a_puff_pushes_along_the_cushions_direction_decaying_with_distance(angle):
+    from deepphy.envs.cuttherope.sim import direction
+
+    d = 100.0
+    ux, uy = direction(angle)
+    cushion = (240 - ux * d, 360 - uy * d)
+    level = make(candies=[{"pos": (240, 360)}], cushions=[{"pos": cushion, "angle": angle}])
+    pushed, still = world_of(level), world_of(level)
+    pushed.tap_air_cushion(1, 1)
+    pushed.advance(round(C.PUFF_DELAY / STEP) + 1)
+    still.advance(pushed.step_count)
+    dv = (pushed.candies[0].vx - still.candies[0].vx, pushed.candies[0].vy - still.candies[0].vy)
+    expected = C.PUFF_SPEED * (1 - d / C.PUFF_RANGE)
+    assert dv == pytest.approx((expected * ux, expected * uy), abs=1.0)
+    outside = world_of(make(candies=[{"pos": (240, 360)}],
+                            cushions=[{"pos": (240 - uy * C.PUFF_WIDTH, 360 + ux * C.PUFF_WIDTH), "angle": angle}]))
+    outside.tap_air_cushion(1, 5)
+    outside.advance(pushed.step_count + 30)
+    still.advance(30)
+    assert (outside.candies[0].vx, outside.candies[0].vy) == (still.candies[0].vx, still.candies[0].vy)
+
+
+def test_more_puffs_push_further():
+    speeds = []
+    for times in C.TAP_TIMES:
+        w = world_of(make(candies=[{"pos": (240, 300)}], bubbles=[{"pos": (240, 300)}],
+                          cushions=[{"pos": (140, 300), "angle": 0}]))
+        w.advance(5)
+        w.tap_air_cushion(1, times)
+        w.advance(40)
+        speeds.append(w.candies[0].vx)
+    assert 0 < speeds[0] < speeds[1] < speeds[2]
+
+
+def test_a_magic_hat_teleports_the_candy_keeping_its_speed():
+    from deepphy.envs.cuttherope.sim import direction
+
+    level = make(candies=[{"pos": (120, 100)}],
+                 hats=[{"hats": [{"pos": (120, 400), "angle": 90}, {"pos": (360, 300), "angle": 30}]}])
+    w = world_of(level)
+    before = None
+    for _ in range(200):
+        prev = (w.candies[0].x, w.candies[0].y, w.candies[0].vx, w.candies[0].vy)
+        w.advance(1)
+        if w.events:
+            before = prev
+            break
+    assert before is not None and "magic hat" in w.events[0].text
+    c = w.candies[0]
+    ux, uy = direction(30)
+    gap = C.HAT_RADIUS + C.CANDY_RADIUS + C.HAT_EXIT_GAP
+    assert (c.x, c.y) == pytest.approx((360 + ux * gap, 300 + uy * gap), abs=1e-9)
+    speed_in = math.hypot(before[2], before[3]) + C.GRAVITY * STEP  # one more step of falling
+    assert math.hypot(c.vx, c.vy) == pytest.approx(speed_in, rel=0.01)
+    assert (c.vx / math.hypot(c.vx, c.vy), c.vy / math.hypot(c.vx, c.vy)) == pytest.approx((ux, uy), abs=1e-9)
+    # Moving out of a hat's opening does not trigger it: the candy flies on, no ping-pong.
+    w.advance(10)
+    assert not any("magic hat" in e.text for e in w.events)
+
+
+def test_spikes_destroy_the_candy():
+    w = world_of(make(candies=[{"pos": (240, 100)}], spikes=[{"a": (180, 400), "b": (300, 400)}]))
+    w.advance(300)
+    assert w.status == "lost" and "spikes" in w.reason
+    assert w.candies[0].y == pytest.approx(400 - C.HAZARD_REACH, abs=10)
+    beside = world_of(make(candies=[{"pos": (240, 100)}], spikes=[{"a": (300, 400), "b": (400, 400)}]))
+    beside.advance(100)
+    assert beside.status == "playing"
+
+
+def test_an_electric_barrier_is_deadly_only_while_live():
+    live = make(candies=[{"pos": (240, 100)}], electrics=[{"a": (180, 400), "b": (300, 400), "period": 2, "on": 1}])
+    w = world_of(live)
+    w.advance(300)
+    assert w.status == "lost" and "electric" in w.reason
+    off = live.model_copy(update={"electrics": [live.electrics[0].model_copy(update={"phase": 1.0})]})
+    w = world_of(off)
+    w.advance(90)  # reaches y = 400 at ~0.86 s, while the barrier is off
+    assert w.status == "playing" and w.candies[0].y > 420
+
+
+def test_a_spider_that_reaches_the_candy_loses_the_level():
+    level = make(candies=[{"pos": (240, 300)}], pins=[{"pos": (240, 184), "spider": {"delay": 0.5}}])
+    w = world_of(level)
+    w.advance(300)
+    assert w.status == "lost" and "spider" in w.reason
+    assert w.time == pytest.approx(0.5 + 116 / C.SPIDER_SPEED, abs=0.02)
+    saved = world_of(level)
+    saved.advance(100)
+    saved.cut_pin(1)
+    assert saved.spiders[0].gone
+
+
+def test_a_star_is_collected_when_the_candy_touches_it():
+    level = make(candies=[{"pos": (240, 100)}], stars=[(240, 300), (240 + C.STAR_RADIUS + C.CANDY_RADIUS - 2, 400),
+                                                        (240 + C.STAR_RADIUS + C.CANDY_RADIUS + 2, 500)])
+    w = world_of(level)
+    w.advance(100)
+    assert w.stars == [True, True, False]
+
+
+def test_an_active_pin_attaches_a_rope_when_the_candy_enters_its_circle():
+    w = world_of(make(candies=[{"pos": (240, 100)}], active_pins=[{"pos": (320, 330), "radius": 100}]))
+    w.advance(100)
+    assert w.active_pins[0].state == "attached"
+    rope = w.rope_of_active_pin(1)
+    assert rope is not None and rope.length <= 100
+    w.advance(100)
+    assert math.dist((w.candies[0].x, w.candies[0].y), (320, 330)) <= rope.length + 1.0  # it swings on it
+    w.cut_active_pin(1)
+    assert w.rope_of_active_pin(1) is None and w.available()["active_pins"] == []
+
+
+def test_two_halves_join_with_momentum_conserved_and_only_a_whole_candy_is_eaten():
+    level = make(candies=[{"pos": (180, 300)}, {"pos": (300, 300)}], om_nom=(240, 310))
+    w = world_of(level)
+    w.candies[0].vx, w.candies[1].vx = 200.0, -100.0
+    w.advance(40)
+    assert [c.alive for c in w.candies[:2]] == [False, False] and any("joined" in e.text for e in w.events)
+    assert w.status == "won"  # the whole candy falls into the mouth right under it
+    apart = world_of(make(candies=[{"pos": (240, 280)}, {"pos": (100, 100)}], om_nom=(240, 330)))
+    apart.advance(30)
+    assert apart.status == "playing"  # a half passes Om Nom by
+
+
+# -- the rules of an attempt -----------------------------------------------------------------------------
+
+
+HANGING = dict(candies=[{"pos": (240, 300)}], pins=[{"pos": (240, 150)}], om_nom=(240, 620),
+               stars=[(240, 400), (240, 480), (400, 100)])
+
+
+def test_winning_reports_the_stars_touched():
+    env, obs = env_of(make(**HANGING))
+    result = env.step(obs.action_space.parse("cut_pin(1)"))
+    assert result.terminated and result.success and not result.truncated
+    assert result.stars == 2 and "LEVEL WON" in result.feedback and len(result.key_frames) == 1
+
+
+def test_a_false_success_is_scored_as_a_failure():
+    env, obs = env_of(make(**HANGING))
+    result = env.step(obs.action_space.parse("success()"))
+    assert result.terminated and not result.success and result.stars == 0
+    assert "success() was claimed" in result.feedback and env.world.time == pytest.approx(C.RUN_ON_CAP)
+
+
+def test_success_lets_a_falling_candy_arrive():
+    far = dict(HANGING, candies=[{"pos": (240, 120)}], pins=[{"pos": (240, 50)}], om_nom=(240, 690))
+    env, obs = env_of(make(**far))
+    first = env.step(obs.action_space.parse("cut_pin(1)"))
+    assert not first.done  # 1 s is not enough to fall 400 px ...
+    result = env.step(first.observation.action_space.parse("success()"))
+    assert result.success and result.terminated  # ... the run-on after success() is
+
+
+def test_fail_gives_up_at_once():
+    env, obs = env_of(make(**HANGING))
+    result = env.step(obs.action_space.parse("fail()"))
+    assert result.terminated and not result.success and env.world.time == 0
+
+
+def test_the_tenth_action_runs_on_and_truncates_when_undecided():
+    env, obs = env_of(make(**HANGING))
+    for n in range(1, 11):
+        result = env.step(obs.action_space.parse("sleep(0.1)"))
+        if n < 10:
+            assert not result.done
+            obs = result.observation
+    assert result.truncated and not result.terminated and not result.success
+    assert env.world.time == pytest.approx(1.0 + C.RUN_ON_CAP)
+
+
+def test_each_action_runs_the_world_for_the_fixed_interval_and_sleep_for_its_time():
+    env, obs = env_of(make(**HANGING, bubbles=[{"pos": (60, 60)}], cushions=[{"pos": (30, 600), "angle": 0}]))
+    obs = env.step(obs.action_space.parse("tap_air_cushion(1, times=3)")).observation
+    assert env.world.time == pytest.approx(C.ACTION_INTERVAL)
+    obs = env.step(obs.action_space.parse("sleep(2.35)")).observation
+    assert env.world.time == pytest.approx(C.ACTION_INTERVAL + 2.35)
+    env.step(obs.action_space.parse("pop_bubble(1)"))
+    assert env.world.time == pytest.approx(2 * C.ACTION_INTERVAL + 2.35)
+
+
+def test_observation_shows_ids_state_and_what_can_be_used():
+    level = load_level("b2_l20")
+    env, obs = env_of(level)
+    image = obs.images[0]
+    assert image.size == (C.WIDTH, C.HEIGHT) and image.name == "scene"
+    text = obs.text
+    assert "Action 1 of at most 10" in text and "You can now:" in text and "Om Nom" in text
+    for k in range(1, len(level.pins) + 1):
+        assert f"P{k} (" in text and f"cut_pin({k})" in text
+    space = obs.action_space
+    assert space.num_pins == len(level.pins) and space.pins == list(range(1, len(level.pins) + 1))
+    first = space.parse(space.format(space.element_actions()[0]))
+    result = env.step(first)
+    if not result.done:
+        assert result.observation.text != text and result.observation.images[0].png != image.png
+
+
+def test_used_elements_leave_the_space_and_an_invalid_step_ends_the_attempt():
+    env, obs = env_of(make(**dict(HANGING, pins=[{"pos": (240, 150)}, {"pos": (100, 150)}], om_nom=(440, 690))))
+    obs = env.step(obs.action_space.parse("cut_pin(1)")).observation
+    assert obs.action_space.pins == [2]
+    with pytest.raises(InvalidAction, match="already cut"):
+        obs.action_space.parse("cut_pin(1)")
+    result = env.step(CutAction(name="cut_pin", id=1))  # built in code, bypassing the parser
+    assert result.terminated and not result.success and result.invalid_reason
+
+
+# -- the action syntax ---------------------------------------------------------------------------------
+
+SPACE = CutSpace(num_pins=3, num_active_pins=2, num_bubbles=2, num_cushions=2, pins=[1, 3], active_pins=[1, 2],
+                 bubbles=[2], cushions_tapped=[1])
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("cut_pin(1)", CutAction(name="cut_pin", id=1)),
+    ("[cut_pin(3)]", CutAction(name="cut_pin", id=3)),
+    ("I will cut the rope: cut_pin(P3).", CutAction(name="cut_pin", id=3)),
+    ("```python\ncut_pin(id=1)\n```", CutAction(name="cut_pin", id=1)),
+    ("CUT_PIN( id = \"P1\" )", CutAction(name="cut_pin", id=1)),
+    ("cut pin(1)", CutAction(name="cut_pin", id=1)),
+    ("cut_active_pin(A2)", CutAction(name="cut_active_pin", id=2)),
+    ("pop_bubble(2)", CutAction(name="pop_bubble", id=2)),
+    ("popBubble(B2)", CutAction(name="pop_bubble", id=2)),
+    ("tap_air_cushion(1, times=3)", CutAction(name="tap_air_cushion", id=1, times=3)),
+    ("tap_air_cushion(2, 5)", CutAction(name="tap_air_cushion", id=2, times=5)),
+    ("tap_air_cushion(id=2, times=1)", CutAction(name="tap_air_cushion", id=2, times=1)),
+    ("tap_air_cushion(times=3, id='C2')", CutAction(name="tap_air_cushion", id=2, times=3)),
+    ("tap_air_cushion(C1)", CutAction(name="tap_air_cushion", id=1, times=1)),
+    ("sleep(1.5)", CutAction(name="sleep", seconds=1.5)),
+    ("sleep(seconds=0.25)", CutAction(name="sleep", seconds=0.25)),
+    ("sleep(2s)", CutAction(name="sleep", seconds=2.0)),
+    ("sleep(.5)", CutAction(name="sleep", seconds=0.5)),
+    ("wait(10)", CutAction(name="sleep", seconds=10.0)),
+    ("success()", CutAction(name="success")),
+    ("Prediction: it falls. Action: fail()", CutAction(name="fail")),
+    ("First cut_pin(1), no wait, better: pop_bubble(2)", CutAction(name="pop_bubble", id=2)),  # the last counts
+])
+def test_parse_accepts_the_syntax_robustly(text, expected):
+    assert SPACE.parse(text) == expected
+
+
+@pytest.mark.parametrize("text, reason", [
+    ("", "no action found"),
+    ("cut the rope please", "no action found"),
+    ("cut_pin(2)", "already cut"),
+    ("cut_pin(4)", "no pin P4"),
+    ("cut_pin(0)", "no pin P0"),
+    ("cut_pin(B1)", "is a bubble, not a pin"),
+    ("cut_pin(1, 2)", "exactly one argument"),
+    ("cut_pin()", "exactly one argument"),
+    ("cut_pin(x)", "not an id"),
+    ("pop_bubble(1)", "already popped"),
+    ("tap_air_cushion(3)", "no air cushion C3"),
+    ("tap_air_cushion(1, times=2)", "times must be one of 1, 3, 5"),
+    ("tap_air_cushion(1, 3, 5)", "takes an id and times"),
+    ("sleep(0.05)", "outside"),
+    ("sleep(10.01)", "outside"),
+    ("sleep(-1)", "not a number"),
+    ("sleep(nan)", "not a number"),
+    ("sleep(1e9)", "not a number"),
+    ("sleep(" + "9" * 400 + ")", "arguments are not closed"),
+    ("sleep(" + "9" * 40 + ")", "not a number"),
+    ("success(now)", "takes no arguments"),
+    ("cut_pin(1) and then cut_pin(7)", "no pin P7"),  # the last one counts, even if invalid
+])
+def test_parse_rejects_everything_else_with_a_reason(text, reason):
+    with pytest.raises(InvalidAction, match=reason):
+        SPACE.parse(text)
+
+
+@pytest.mark.parametrize("text", [
+    "[" * 1_000_000,
+    "cut_pin(" * 100_000,
+    "cut_pin" + " " * 10_000 + "(1)",
+    "sleep(" + "1" * 1_000_000 + ")",
+    "tap_air_cushion(1, " + "," * 300_000 + ")",
+    ("cut_pin(1) " * 50_000),
+])
+def test_parse_is_total_and_fast_on_adversarial_text(text):
+    start = time.perf_counter()
+    try:
+        SPACE.parse(text)
+    except InvalidAction:
+        pass
+    assert time.perf_counter() - start < 1.0
+
+
+def test_format_round_trips_and_sample_is_uniform_over_the_valid_actions():
+    rng = np.random.default_rng(0)
+    valid = SPACE.valid_actions()
+    assert len(valid) == 2 + 2 + 1 + 2 * 3 + len(C.SAMPLE_SLEEPS) + 2
+    counts = Counter(SPACE.format(SPACE.sample(rng)) for _ in range(6000))
+    assert set(counts) == {SPACE.format(a) for a in valid}
+    assert max(counts.values()) / min(counts.values()) < 1.5
+    for a in valid:
+        assert SPACE.parse(SPACE.format(a)) == a
+    assert ActionSpace.from_json(SPACE.model_dump(mode="json")) == SPACE
+
+
+def test_reference_reply_is_the_reference_random_agent():
+    rng = np.random.default_rng(1)
+    replies = Counter(SPACE.reference_reply(rng) for _ in range(4000))
+    # unused pins and active pins, bubbles present, one tap of cushions not tapped yet
+    assert set(replies) == {"cut_pin(1)", "cut_pin(3)", "cut_active_pin(1)", "cut_active_pin(2)", "pop_bubble(2)",
+                            "tap_air_cushion(2, times=1)"}
+    assert max(replies.values()) / min(replies.values()) < 1.3
+    spent = CutSpace(num_pins=2, num_cushions=1, pins=[], cushions_tapped=[1])
+    assert spent.reference_reply(rng) == "fail()"
+
+
+# -- determinism ---------------------------------------------------------------------------------------
+
+REPLAY = """
+import json, sys
+from deepphy.envs.cuttherope.env import CutTheRopeEnv
+from deepphy.envs.cuttherope.level import load_level
+from deepphy.envs import Task
+level_id, texts = sys.argv[1], json.loads(sys.argv[2])
+env = CutTheRopeEnv()
+obs = env.reset(Task(env="cuttherope", id=level_id, params={"level": level_id}))
+out = []
+for t in texts:
+    r = env.step(obs.action_space.parse(t))
+    w = env.world
+    out.append([r.feedback, r.success, r.terminated, r.truncated, r.stars, w.step_count,
+                [[c.x.hex(), c.y.hex(), c.vx.hex(), c.vy.hex()] for c in w.candies], r.key_frames[0].png.hex()[-64:]])
+    if r.done:
+        break
+    obs = r.observation
+print(json.dumps(out))
+"""
+
+
+def test_same_actions_give_bit_identical_outcomes_in_fresh_processes():
+    level = load_level("b2_l20")
+    texts = ["sleep(0.37)", *level.solution.actions]
+    runs = []
+    for hashseed in ("1", "2"):
+        env = {**os.environ, "PYTHONHASHSEED": hashseed}
+        proc = subprocess.run([sys.executable, "-c", REPLAY, level.id, json.dumps(texts)], capture_output=True,
+                              text=True, env=env, check=True)
+        runs.append(json.loads(proc.stdout))
+    assert runs[0] == runs[1] and len(runs[0]) >= 2
+
+
+def test_a_restored_snapshot_continues_exactly_like_the_original():
+    from deepphy.envs.cuttherope.oracle import act, moves
+
+    level = load_level("b4_l10")
+    w = world_of(level)
+    act(w, CutAction(name="sleep", seconds=0.5))
+    copy = w.snapshot()
+    for world in (w, copy):
+        for move in moves(world)[:2]:
+            act(world, move)
+        world.run_on(300)
+    assert [(c.x, c.y, c.vx, c.vy) for c in w.candies] == [(c.x, c.y, c.vx, c.vy) for c in copy.candies]
+    assert (w.status, w.step_count, w.stars) == (copy.status, copy.step_count, copy.stars)
+
+
+def test_same_seed_same_mock_records():
+    import asyncio
+
+    from deepphy.agents import MockModel
+    from deepphy.config import RunConfig
+    from deepphy.protocol import LocalEnv, MemoryArtifacts, run_attempt
+
+    spec = get_spec("cuttherope")
+    cls = spec.load()
+    tasks = [t for t in cls.tasks(cls.Options()) if t.id in ("b1_l03", "b2_l09", "b5_l01")]
+
+    def records(seed):
+        config = RunConfig(env="cuttherope", model="mock", seed=seed)
+        out = []
+        for task in tasks:
+            rec = asyncio.run(run_attempt(spec, spec.load_prompt(), config, task, 0, 1, [], LocalEnv(cls()),
+                                          MockModel(), MemoryArtifacts()))
+            out.append(rec.deterministic_view())
+        return out
+
+    first = records(3)
+    assert first == records(3)
+    assert first != records(4)
+    assert all(1 <= len(r["steps"]) <= C.MAX_ACTIONS for r in first)
+
+
+# -- prompt -----------------------------------------------------------------------------------------------
+
+
+def test_prompt_states_legend_rules_numbers_and_a_valid_example():
+    from deepphy.chat import PromptFormat
+    from deepphy.prompts import build_messages
+
+    spec = get_spec("cuttherope")
+    prompt = spec.load_prompt()
+    task = Task(env="cuttherope", id="b2_l20", params={"level": "b2_l20"})
+    env, obs = env_of(load_level("b2_l20"))
+    rules = prompt.rules(task, obs)
+    for needle in ("cut_pin(id)", "cut_active_pin(id)", "pop_bubble(id)", "tap_air_cushion(id, times=n)",
+                   "sleep(seconds)", "success()", "fail()", "1, 3, 5", f"{C.MAX_ACTIONS} actions",
+                   f"{C.ACTION_INTERVAL:g} s", f"{C.RUN_ON_CAP:g} s", "Spiders", "Magic hats", "Bubbles", "stars"):
+        assert needle in rules, needle
+    obs.action_space.parse(prompt.example(obs))
+    for fmt in PromptFormat:
+        messages = build_messages(prompt, fmt, task, obs, [])
+        assert messages[1].images and "You can now" in messages[1].text
