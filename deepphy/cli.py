@@ -83,7 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
     solve = sub.add_parser("solve", help="search an environment's tasks for solving actions (its solvability report)")
     solve.add_argument("--env", required=True, help="an environment with a solver (see `deepphy envs`)")
     solve.add_argument("solver_args", nargs=argparse.REMAINDER,
-                       help="the solver's own arguments (see `deepphy solve --env ENV --help`)")
+                       help="the solver's own arguments; default `report`, the solvability report "
+                            "(see `deepphy solve --env ENV --help`)")
 
     show = sub.add_parser("show", help="write the images a model would see for one task")
     show.add_argument("--env", required=True)
@@ -217,7 +218,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
     if solver is None:
         with_solver = ", ".join(n for n, s in specs().items() if s.solver) or "none"
         raise UserError(f"{args.env} has no solver (environments with one: {with_solver})")
-    return solver(args.solver_args or ["--help"])
+    return solver(args.solver_args or ["report"])
 
 
 def cmd_watch(args: argparse.Namespace) -> int:

@@ -211,7 +211,7 @@ class CutSpace(ActionSpace):
         actions = self.valid_actions()
         return actions[int(rng.integers(len(actions)))]
 
-    def reference_reply(self, rng: np.random.Generator) -> str:
+    def reference_reply(self, rng: np.random.Generator, earlier: Sequence[str] = ()) -> str:
         """The reference benchmark's random agent: uniform among cutting each pin and active
         pin not used yet, popping each bubble present, and one tap of each cushion not
         tapped yet; fail() when nothing is left; never sleep() or success()."""
