@@ -24,12 +24,25 @@ start)
   echo "127.0.0.2:$PORT"
   ;;
 stop)
-  # Every process of this cluster names its temp/session directory on its command line.
-  pids=$(pgrep -f -- "$DIR" || true)
+  # Every process that names this cluster's directory, and all their descendants: Ray's
+  # agents rename themselves (no directory on their command line) and ignore SIGTERM.
+  family() {
+    local all frontier next p
+    all=$(pgrep -f -- "$DIR" || true)
+    frontier=$all
+    while [ -n "$frontier" ]; do
+      next=""
+      for p in $frontier; do next="$next $(pgrep -P "$p" || true)"; done
+      frontier=$(echo $next)
+      all="$all $frontier"
+    done
+    echo $all
+  }
+  pids=$(family)
   [ -n "$pids" ] && kill $pids 2>/dev/null || true
   sleep 2
-  pids=$(pgrep -f -- "$DIR" || true)
-  [ -n "$pids" ] && kill -9 $pids 2>/dev/null || true
+  pids="$pids $(family)"
+  [ -n "${pids// /}" ] && kill -9 $pids 2>/dev/null || true
   echo stopped
   ;;
 *)

@@ -273,6 +273,10 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
                 print(f"deepphy: {arg} holds no run yet; the page shows it once one appears", file=sys.stderr)
         paths += [p.resolve() for p in runs_in(arg)]
     sources = [RunSource(p) for p in dict.fromkeys(paths)]  # a bad run directory: a clear error now
+    if args.address:
+        from deepphy.dashboard import live
+
+        live.connect(args.address)  # no cluster there: a clear error now, not a page that waits
 
     def announce(url: str) -> None:
         print(f"dashboard: {url}  (Ctrl-C to stop)", flush=True)
@@ -318,14 +322,15 @@ COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_
 def main(argv: list[str] | None = None) -> int:
     from deepphy.envs import UnknownEnvironment
     from deepphy.models import MissingKey, ModelsFileError, UnknownModel
-    from deepphy.runner import ConfigError, quiet_environment
+    from deepphy.runner import ClusterUnavailable, ConfigError, quiet_environment
     from deepphy.runs.store import RunDirError
 
     quiet_environment()
     try:
         args = build_parser().parse_args(argv)
         return COMMANDS[args.command](args)
-    except (UserError, ConfigError, RunDirError, UnknownEnvironment, UnknownModel, MissingKey, ModelsFileError) as e:
+    except (UserError, ConfigError, RunDirError, UnknownEnvironment, UnknownModel, MissingKey, ModelsFileError,
+            ClusterUnavailable) as e:
         print(f"deepphy: error: {e}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into `head` and friends

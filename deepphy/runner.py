@@ -28,8 +28,15 @@ RAY_TIMEOUT_S = 60.0
 LOOPBACK_NODE_IP = "127.0.0.2" if sys.platform.startswith("linux") else "127.0.0.1"
 
 
+CONNECT_TIMEOUT_S = 10.0  # joining a cluster: a clear error instead of Ray's minutes of retries
+
+
 class ConfigError(ValueError):
     """A run config that cannot be evaluated. The message is for the user."""
+
+
+class ClusterUnavailable(RuntimeError):
+    """No usable Ray cluster at the address given. The message is for the user."""
 
 
 @dataclass
@@ -95,7 +102,7 @@ def ensure_ray(runtime: RuntimeOptions) -> bool:
     quiet_environment()
     address = runtime.address or os.environ.get("RAY_ADDRESS")
     if address:
-        ray.init(address=address, logging_level=logging.WARNING)
+        join_cluster(address)
         return True
     # A local cluster on loopback keeps Ray's default token auth; its notice is noise here.
     logging.getLogger("ray._private.authentication.authentication_token_setup").setLevel(logging.ERROR)
@@ -111,6 +118,81 @@ def ensure_ray(runtime: RuntimeOptions) -> bool:
     # Ray processes it started, agents included, within seconds.
     reaper.start(reaper.ray_roots())
     return True
+
+
+def join_cluster(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """`ray.init(address=...)`, failing within seconds with one line that names the address
+    (and the token setting, when that is the cause) instead of retrying for minutes.
+
+    Ray's client retries print to the process's stderr from C++; while connecting, that
+    output goes to a temporary file, read only to tell an authentication failure."""
+    import tempfile
+    import threading
+
+    import ray
+
+    host, sep, port = address.rpartition(":")
+    if sep and port.isdigit() and "://" not in address:  # HOST:PORT: is anything listening?
+        _probe(host, int(port), address, timeout_s)
+    failure: list[BaseException] = []
+
+    def connect() -> None:
+        try:
+            ray.init(address=address, logging_level=logging.WARNING)
+        except BaseException as e:  # noqa: BLE001 - reported below
+            failure.append(e)
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as noise:
+        os.dup2(noise.fileno(), 2)
+        try:
+            worker = threading.Thread(target=connect, daemon=True)
+            worker.start()
+            deadline = time.monotonic() + timeout_s
+            said = ""
+            while worker.is_alive() and time.monotonic() < deadline and not _refused(said):
+                worker.join(0.25)
+                noise.seek(0)
+                said = noise.read().decode(errors="replace")
+            said += "".join(f"{type(e).__name__}: {e}" for e in failure)
+        finally:
+            if worker.is_alive() or failure:
+                # Ray keeps retrying in the background until this process exits: keep its
+                # output away from the terminal and give Python a stderr of its own.
+                sys.stderr = os.fdopen(saved, "w", buffering=1)
+            else:
+                os.dup2(saved, 2)
+                os.close(saved)
+    if not worker.is_alive() and not failure:
+        return
+    if _refused(said):
+        mode = os.environ.get("RAY_AUTH_MODE", "unset")
+        raise ClusterUnavailable(
+            f"the Ray cluster at {address} refused this client's credentials (RAY_AUTH_MODE is {mode}; a "
+            "cluster with token authentication needs RAY_AUTH_MODE=token and its token, e.g. ~/.ray/auth_token)"
+        )
+    if worker.is_alive():
+        raise ClusterUnavailable(f"the Ray cluster at {address} did not accept the connection within {timeout_s:g} s")
+    first = str(failure[0]).strip().splitlines()[0][:200] if str(failure[0]).strip() else type(failure[0]).__name__
+    raise ClusterUnavailable(f"cannot join the Ray cluster at {address}: {first}")
+
+
+def _refused(said: str) -> bool:
+    """Ray's words for a client whose token does not match the cluster's."""
+    said = said.lower()
+    return "unauthenticated" in said or "invalidauthtoken" in said or "auth_token" in said
+
+
+def _probe(host: str, port: int, address: str, timeout_s: float) -> None:
+    import socket
+
+    try:
+        with socket.create_connection((host or "127.0.0.1", port), timeout=min(timeout_s, 5.0)):
+            pass
+    except OSError as e:
+        reason = e.strerror or type(e).__name__
+        raise ClusterUnavailable(f"no Ray cluster answers at {address} ({reason.lower()})") from None
 
 
 def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None = None, *,
@@ -130,13 +212,17 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
     spec, tasks, k_max = resolve(config)
     endpoint = endpoint_config(config.model, runtime.models_file)
     make_agent(config.model, runtime.models_file)  # a missing key fails here, before anything is written
-    store = RunStore.create_or_resume(out, config)
-    started_ray = False
+    RunStore.check(out, config)  # a directory holding another run fails before Ray starts
+    started_ray = ensure_ray(runtime)  # no cluster at the address: fails before the directory is made
     actors: list[Any] = []
+    try:
+        store = RunStore.create_or_resume(out, config)
+    except BaseException:
+        _stop_ray(started_ray)
+        raise
     try:
         existing = read_records(out)
         _check_unique(existing, out)
-        started_ray = ensure_ray(runtime)
         n_workers = runtime.env_workers or _default_workers(runtime.env_resource)
         # Named "deepphy/<run id>/<role>": a dashboard or an operator can find a live run's
         # metrics actor (ray.util.list_named_actors) and poll its snapshot.
@@ -174,8 +260,14 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
                 ray.kill(actor)
             except Exception:  # noqa: BLE001 - already gone
                 pass
-        if started_ray:
-            ray.shutdown()
+        _stop_ray(started_ray)
+
+
+def _stop_ray(started: bool) -> None:
+    import ray
+
+    if started:
+        ray.shutdown()
 
 
 def _default_workers(resource: str | None) -> int:

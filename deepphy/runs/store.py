@@ -48,20 +48,27 @@ class RunStore:
     # -- opening ----------------------------------------------------------------------
 
     @classmethod
-    def create_or_resume(cls, path: str | Path, config: RunConfig) -> "RunStore":
-        """Open for writing: a new directory, or the resume of a run with the same config."""
-        store = cls(Path(path))
-        if store.path.exists() and not store.path.is_dir():
-            raise RunDirError(f"{store.path} exists and is not a directory")
-        existing = store.path / CONFIG
-        if existing.exists():
-            previous = read_config(store.path)
+    @staticmethod
+    def check(path: str | Path, config: RunConfig) -> None:
+        """RunDirError unless `path` can hold this run (new, or the same config): creates nothing."""
+        path = Path(path)
+        if path.exists() and not path.is_dir():
+            raise RunDirError(f"{path} exists and is not a directory")
+        if (path / CONFIG).exists():
+            previous = read_config(path)
             if previous != config:
                 diff = _diff(previous.model_dump(mode="json"), config.model_dump(mode="json"))
                 raise RunDirError(
-                    f"{store.path} holds a run with a different config ({diff}); "
+                    f"{path} holds a run with a different config ({diff}); "
                     "resume it with the same options or choose another --out"
                 )
+
+    @classmethod
+    def create_or_resume(cls, path: str | Path, config: RunConfig) -> "RunStore":
+        """Open for writing: a new directory, or the resume of a run with the same config."""
+        store = cls(Path(path))
+        cls.check(store.path, config)
+        existing = store.path / CONFIG
         try:
             store.path.mkdir(parents=True, exist_ok=True)
             (store.path / "frames").mkdir(exist_ok=True)
@@ -147,7 +154,8 @@ class RunStore:
 def read_config(path: str | Path) -> RunConfig:
     path = Path(path)
     if not path.is_dir():
-        raise RunDirError(f"{path} is not a run directory (it does not exist)")
+        why = "it is a file" if path.exists() else "it does not exist"
+        raise RunDirError(f"{path} is not a run directory ({why})")
     try:
         return RunConfig.model_validate_json((path / CONFIG).read_bytes())
     except FileNotFoundError:
