@@ -18,6 +18,7 @@ from pydantic import ValidationError
 from deepphy import reaper
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import EnvSpec, Task, get_spec
+from deepphy.metrics import figures as F
 from deepphy.metrics.live import format_progress
 from deepphy.runs.store import RunDirError, RunStore, read_records
 
@@ -206,7 +207,7 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
     from deepphy.actors.model_worker import make_model_worker
     from deepphy.actors.rate_limiter import ensure_limiter
     from deepphy.agents import endpoint_config, make_agent
-    from deepphy.scheduler import Scheduler
+    from deepphy.scheduler import Scheduler, WorkerModel
 
     runtime = runtime or RuntimeOptions()
     spec, tasks, k_max = resolve(config)
@@ -229,29 +230,36 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
         prefix = f"deepphy/{uuid.uuid4().hex[:8]}"
         env_workers = [
             make_env_worker(spec, config.env_options, name=f"{prefix}/env{i}", resource=runtime.env_resource,
-                            log_path=store.log_path(f"env{i}"))
+                            log_path=store.log_path(f"env{i}"), max_concurrency=max(1000, runtime.max_in_flight))
             for i in range(n_workers)
         ]
         # The driver owns the endpoint's limiter, so a model worker's restart keeps its windows.
         limiter = ensure_limiter(endpoint) if endpoint is not None else None
-        model_worker = make_model_worker(config.model, spec, name=f"{prefix}/model", models_file=runtime.models_file)
+        if endpoint is None:  # a random baseline answers in microseconds: no worker, no Ray call
+            model, model_actors = make_agent(config.model), []
+        else:
+            worker = make_model_worker(config.model, spec, name=f"{prefix}/model", models_file=runtime.models_file,
+                                       max_concurrency=max(1000, runtime.max_in_flight))
+            model, model_actors = WorkerModel(worker), [worker]
         total = len(tasks) * config.runs
         metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics", run={
             "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})
-        actors = [*env_workers, model_worker, metrics, *([limiter] if limiter is not None else [])]
+        actors = [*env_workers, *model_actors, metrics, *([limiter] if limiter is not None else [])]
         ray.get(metrics.add.remote([r.summary() for r in existing], resumed=True), timeout=RAY_TIMEOUT_S)
-        scheduler = Scheduler(config, runtime, spec, tasks, store, env_workers, model_worker, metrics, k_max)
+        scheduler = Scheduler(config, runtime, spec, tasks, store, env_workers, model, metrics, k_max)
         asyncio.run(_drive(scheduler, existing, env_workers, metrics, runtime, stream))
-        snap = ray.get(metrics.snapshot.remote(), timeout=RAY_TIMEOUT_S)
-        worker_stats = ray.get([w.stats.remote() for w in env_workers], timeout=RAY_TIMEOUT_S)
+        # The run directory, not a live actor, says what is done.
+        records = read_records(out)
+        done = sum(1 for e in F.episodes(records, k_max) if e.finished and e.run < config.runs
+                   and e.task in {t.id for t in tasks})
         return RunOutcome(
             out=Path(out),
             episodes_total=total,
-            episodes_done=snap["episodes_done"],
-            new_records=snap["attempts"] - len(existing),
+            episodes_done=done,
+            new_records=len(records) - len(existing),
             unfinished=scheduler.failed,
             errored=scheduler.errored,
-            worker_stats=worker_stats,
+            worker_stats=_worker_stats(env_workers),
         )
     finally:
         store.close()
@@ -261,6 +269,19 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             except Exception:  # noqa: BLE001 - already gone
                 pass
         _stop_ray(started_ray)
+
+
+def _worker_stats(env_workers: list[Any]) -> list[dict[str, int]]:
+    """Each live environment worker's counters (a worker lost with its node has none)."""
+    import ray
+
+    out = []
+    for worker in env_workers:
+        try:
+            out.append(ray.get(worker.stats.remote(), timeout=RAY_TIMEOUT_S))
+        except Exception:  # noqa: BLE001 - lost, or restarting
+            pass
+    return out
 
 
 def _stop_ray(started: bool) -> None:
@@ -318,7 +339,8 @@ async def _progress(scheduler, metrics, phase: list[str], stream) -> None:
 async def _print_snapshot(scheduler, metrics, phase: str, stream, final: bool) -> None:
     try:
         # The driver's own counters go to the metrics actor, so `deepphy watch` sees them too.
-        metrics.update.remote({**scheduler.activity(), "phase": phase})
+        scheduler.send_summaries()
+        metrics.update.remote({**scheduler.activity(), "phase": phase})  # also while warming up
         snap = await asyncio.wait_for(metrics.snapshot.remote(), timeout=10)
     except Exception:  # noqa: BLE001 - progress is best effort
         return

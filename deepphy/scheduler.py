@@ -15,7 +15,7 @@ import asyncio
 import logging
 import time
 import traceback
-from collections import defaultdict
+from collections import OrderedDict, defaultdict
 from typing import Any, Sequence
 
 import ray
@@ -25,8 +25,8 @@ from deepphy.actors.env_worker import LostEpisode
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import Action, EnvSpec, Observation, StepResult, Task
 from deepphy.models import ModelError, ModelRequest, ModelResponse
-from deepphy.protocol import run_attempt
-from deepphy.runs.records import AttemptRecord, episode_finished
+from deepphy.protocol import ModelHandle, run_attempt
+from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished
 from deepphy.runs.store import RunStore
 
 log = logging.getLogger(__name__)
@@ -50,19 +50,58 @@ class BudgetExhausted(RuntimeError):
     """The run's cost budget (--max-cost) is spent; the attempt is left for a resume."""
 
 
-class WorkerEnv:
-    """The protocol's `EnvHandle` over one environment worker actor, for one attempt."""
+class InitialObservations:
+    """The first observation of recently seen tasks. Reset is deterministic (the contract),
+    so an attempt of a task seen before needs no reset call: its first step carries the
+    task and the worker resets in the same call. Bounded: memory does not grow with a run."""
 
-    def __init__(self, worker: Any, episode: str, timeout_s: float) -> None:
-        self.worker, self.episode, self.timeout_s = worker, episode, timeout_s
+    def __init__(self, size: int = 256) -> None:
+        self.size = size
+        self.by_task: OrderedDict[str, Observation] = OrderedDict()
+
+    def get(self, task: Task) -> Observation | None:
+        obs = self.by_task.get(task.id)
+        if obs is not None:
+            self.by_task.move_to_end(task.id)
+        return obs
+
+    def put(self, task: Task, obs: Observation) -> None:
+        self.by_task[task.id] = obs
+        while len(self.by_task) > self.size:
+            self.by_task.popitem(last=False)
+
+
+class WorkerEnv:
+    """The protocol's `EnvHandle` over one environment worker actor, for one attempt: one
+    Ray call per decision (the reset rides with the first step when the observation is
+    known; the worker releases the instance when a step ends the attempt)."""
+
+    def __init__(self, worker: Any, episode: str, timeout_s: float, initial: InitialObservations) -> None:
+        self.worker, self.episode, self.timeout_s, self.initial = worker, episode, timeout_s, initial
+        self.pending_reset: Task | None = None
+        self.held = False  # the worker holds an instance for this attempt
 
     async def reset(self, task: Task) -> Observation:
-        return await self._call(self.worker.reset.remote(self.episode, task))
+        known = self.initial.get(task)
+        if known is not None:
+            self.pending_reset = task
+            return known
+        self.held = True
+        obs = await self._call(self.worker.reset.remote(self.episode, task))
+        self.initial.put(task, obs)
+        return obs
 
     async def step(self, action: Action) -> StepResult:
-        return await self._call(self.worker.step.remote(self.episode, action))
+        reset, self.pending_reset = self.pending_reset, None
+        self.held = True
+        result = await self._call(self.worker.step.remote(self.episode, action, reset))
+        self.held = not result.done
+        return result
 
     def release(self) -> None:
+        """Free the worker's instance if the attempt ended without a final step."""
+        if not self.held:
+            return
         try:
             self.worker.release.remote(self.episode)
         except Exception:  # noqa: BLE001 - a dead worker holds nothing to release
@@ -78,6 +117,16 @@ class WorkerEnv:
             raise WorkerLost(f"no answer within {self.timeout_s:g} s") from None
 
 
+class WorkerModel:
+    """The protocol's `ModelHandle` over a model worker actor."""
+
+    def __init__(self, worker: Any) -> None:
+        self.worker = worker
+
+    async def complete(self, request: ModelRequest) -> ModelResponse:
+        return await self.worker.complete.remote(request)
+
+
 class Scheduler:
     def __init__(
         self,
@@ -87,7 +136,7 @@ class Scheduler:
         tasks: Sequence[Task],
         store: RunStore,
         env_workers: list[Any],
-        model_worker: Any,
+        model: ModelHandle,
         metrics: Any,
         k_max: int,
         max_model_requeues: int = 5,
@@ -100,7 +149,7 @@ class Scheduler:
         self.store = store
         self.env_workers = env_workers
         self.load = [0] * len(env_workers)  # live episodes per worker
-        self.model_worker = model_worker
+        self.model = model
         self.metrics = metrics
         self.k_max = k_max
         self.max_model_requeues = max_model_requeues
@@ -111,10 +160,15 @@ class Scheduler:
         self.budget_hit = False
         self.in_flight = 0
         self.decisions = 0  # model requests answered in this session
+        self.initial = InitialObservations()
+        self.unsent: list[AttemptSummary] = []  # for the metrics actor, sent in batches (flush)
 
     # -- top level --------------------------------------------------------------------
 
     async def run(self, existing: Sequence[AttemptRecord]) -> None:
+        """Every unfinished episode, at most `max_in_flight` at once. Memory stays flat: a
+        fixed pool of episode loops, and an episode's records are dropped when it ends."""
+        self._charge(sum(r.model_stats.usage.cost_usd for r in existing))
         records: dict[tuple[str, int], list[AttemptRecord]] = defaultdict(list)
         for r in existing:
             records[(r.task, r.run)].append(r)
@@ -122,25 +176,30 @@ class Scheduler:
             (task, run)
             for run in range(self.config.runs)
             for task in self.tasks
-            if not episode_finished(records[(task.id, run)], self.k_max)
+            if not episode_finished(records.get((task.id, run), []), self.k_max)
         ]
-        gate = asyncio.Semaphore(self.runtime.max_in_flight)
-        self._charge(sum(r.model_stats.usage.cost_usd for r in existing))
+        records = defaultdict(list, {(t.id, r): records[(t.id, r)] for t, r in todo if (t.id, r) in records})
+        queue = iter(todo)
 
-        async def guarded(task: Task, run: int) -> None:
-            async with gate:
+        async def episodes() -> None:
+            for task, run in queue:  # one shared iterator: each episode is taken once
                 if self.stop_requested:
                     return
                 self.in_flight += 1
                 try:
-                    await self._episode(task, run, records[(task.id, run)])
+                    await self._episode(task, run, records.pop((task.id, run), []))
                 except (ModelUnavailable, WorkerLost, BudgetExhausted) as e:
                     self.failed.append(f"{task.id} run {run}: {e}")
                     log.warning("episode %s run %d left unfinished: %s", task.id, run, e)
                 finally:
                     self.in_flight -= 1
 
-        await asyncio.gather(*(guarded(t, r) for t, r in todo))
+        flusher = asyncio.ensure_future(self._send_summaries_every(0.5))
+        try:
+            await asyncio.gather(*(episodes() for _ in range(min(self.runtime.max_in_flight, len(todo)))))
+        finally:
+            flusher.cancel()
+            self.send_summaries()
 
     async def _episode(self, task: Task, run: int, records: list[AttemptRecord]) -> None:
         while not episode_finished(records, self.k_max) and not self.stop_requested:
@@ -154,7 +213,19 @@ class Scheduler:
                 return
             self.store.append(record)
             records.append(record)
-            self.metrics.add.remote([record.summary()])
+            self.unsent.append(record.summary())
+
+    def send_summaries(self) -> None:
+        """Hand the new attempts' summaries to the metrics actor, in one call."""
+        if self.unsent:
+            batch, self.unsent = self.unsent, []
+            self.metrics.add.remote(batch)
+
+    async def _send_summaries_every(self, seconds: float) -> None:
+        while True:
+            await asyncio.sleep(seconds)
+            self.send_summaries()
+            self.metrics.update.remote({**self.activity(), "phase": "running"})
 
     async def _attempt_with_retries(
         self, task: Task, run: int, attempt: int, previous: list[AttemptRecord]
@@ -187,7 +258,7 @@ class Scheduler:
     async def _attempt(self, task: Task, run: int, attempt: int, previous: list[AttemptRecord]) -> AttemptRecord:
         index = min(range(len(self.env_workers)), key=lambda i: self.load[i])
         env = WorkerEnv(self.env_workers[index], f"{task.id}|{run}|{attempt}|{time.monotonic_ns()}",
-                        self.runtime.step_timeout_s)
+                        self.runtime.step_timeout_s, self.initial)
         self.load[index] += 1
         try:
             return await run_attempt(self.spec, self.prompt, self.config, task, run, attempt, previous,
@@ -201,9 +272,8 @@ class Scheduler:
     async def complete(self, request: ModelRequest) -> ModelResponse:
         if self.budget_hit:  # abandon the attempt unrecorded: a resume re-runs it
             raise BudgetExhausted(f"cost budget ${self.runtime.max_cost_usd:g} reached (${self.spent_usd:.4f} spent)")
-        ref = self.model_worker.complete.remote(request)
         try:
-            response = await asyncio.wait_for(ref, timeout=self.runtime.model_timeout_s)
+            response = await asyncio.wait_for(self.model.complete(request), timeout=self.runtime.model_timeout_s)
         except ModelError as e:
             raise ModelUnavailable(str(e), retries=getattr(e, "retries", 0)) from e
         except (asyncio.TimeoutError, RayActorError) as e:

@@ -1,6 +1,9 @@
 """Environment worker: one CPU actor hosting many live environment instances.
 
-Instances are keyed by episode id and live for one attempt. Step requests that arrive
+Instances are keyed by episode id and live for one attempt: a step that ends the attempt
+releases its instance, and the first step of an attempt may carry its task, so the
+attempt's reset happens in the same call (the driver already holds the initial
+observation: reset is deterministic). Step requests that arrive
 while the worker is busy are stepped together through `Environment.step_many`, so an
 environment that can batch (Kinetix) does; the others step one after another. A batch
 that raises is stepped again one instance at a time, so an environment bug fails only
@@ -43,7 +46,10 @@ class EnvWorkerImpl:
         self.live[episode] = env
         return env.reset(task)
 
-    async def step(self, episode: str, action: Action) -> StepResult:
+    async def step(self, episode: str, action: Action, reset: Task | None = None) -> StepResult:
+        """One decision. `reset`: the attempt's task, to reset first (its first decision)."""
+        if reset is not None:
+            await self.reset(episode, reset)
         if episode not in self.live:
             raise LostEpisode(episode)
         future = asyncio.get_running_loop().create_future()
@@ -51,7 +57,10 @@ class EnvWorkerImpl:
         if not self.draining:
             self.draining = True
             asyncio.get_running_loop().call_soon(self._drain)
-        return await future
+        result = await future
+        if result.done:
+            await self.release(episode)
+        return result
 
     def _drain(self) -> None:
         batch, self.pending, self.draining = self.pending, [], False
@@ -98,11 +107,13 @@ def _redirect_output(log_path: str | None) -> None:
 
 
 def make_env_worker(spec: EnvSpec, options: dict[str, Any], *, name: str | None = None,
-                    resource: str | None = None, log_path: str | None = None, max_restarts: int = 5):
-    """An EnvWorker actor handle: one logical CPU, restarted if its process dies.
+                    resource: str | None = None, log_path: str | None = None, max_restarts: int = 5,
+                    max_concurrency: int = 1000):
+    """An EnvWorker actor handle: one logical CPU, restarted if its process (or its node)
+    dies, spread over the cluster's nodes.
 
     `resource` places it only on nodes that declare that custom resource (e.g. `physics`);
     a token amount is asked so CPUs, not the resource, bound the number of workers."""
-    actor = ray.remote(num_cpus=1, max_restarts=max_restarts, max_concurrency=1000)(EnvWorkerImpl)
+    actor = ray.remote(num_cpus=1, max_restarts=max_restarts, max_concurrency=max_concurrency)(EnvWorkerImpl)
     resources = {resource: 0.001} if resource else None
-    return actor.options(name=name, resources=resources).remote(spec, options, log_path)
+    return actor.options(name=name, resources=resources, scheduling_strategy="SPREAD").remote(spec, options, log_path)

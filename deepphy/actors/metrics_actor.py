@@ -7,6 +7,7 @@ from typing import Any
 
 import ray
 
+from deepphy.actors.placement import beside_driver
 from deepphy.metrics.live import LiveMetrics
 from deepphy.runs.records import AttemptSummary
 
@@ -28,4 +29,5 @@ class MetricsImpl:
 
 def make_metrics_actor(episodes_total: int, max_attempts: int, *, name: str | None = None,
                        run: dict[str, Any] | None = None):
-    return ray.remote(num_cpus=0)(MetricsImpl).options(name=name).remote(episodes_total, max_attempts, run)
+    return ray.remote(num_cpus=0)(MetricsImpl).options(name=name, scheduling_strategy=beside_driver()).remote(
+        episodes_total, max_attempts, run)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ray
 
+from deepphy.actors.placement import beside_driver
 from deepphy.envs import EnvSpec, register
 from deepphy.models import ModelRequest, ModelResponse
 
@@ -26,6 +27,7 @@ class ModelWorkerImpl:
 
 def make_model_worker(model: str, spec: EnvSpec, *, name: str | None = None, models_file: str | None = None,
                       max_concurrency: int = 1000):
+    """`max_concurrency`: requests handled at once (a run passes its episodes in flight)."""
     # Stateless: a crashed worker is restarted and its in-flight calls retried by Ray.
     actor = ray.remote(num_cpus=0, max_restarts=5, max_task_retries=3, max_concurrency=max_concurrency)(ModelWorkerImpl)
-    return actor.options(name=name).remote(model, spec, models_file)
+    return actor.options(name=name, scheduling_strategy=beside_driver()).remote(model, spec, models_file)

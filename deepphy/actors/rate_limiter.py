@@ -29,6 +29,7 @@ from typing import Any
 
 import ray
 
+from deepphy.actors.placement import beside_driver
 from deepphy.models.config import ModelConfig, RateLimits
 from deepphy.models.limiter import AsyncRateLimiter
 
@@ -63,7 +64,8 @@ def ensure_limiter(config: ModelConfig):
     if not config.rate_limits.enabled:
         return None
     return RateLimiterActor.options(
-        name=limiter_name(config.limiter_key), namespace=NAMESPACE, get_if_exists=True
+        name=limiter_name(config.limiter_key), namespace=NAMESPACE, get_if_exists=True,
+        scheduling_strategy=beside_driver(),
     ).remote(
         config.rate_limits.model_dump()
     )

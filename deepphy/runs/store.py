@@ -28,6 +28,7 @@ from pydantic import ValidationError
 from deepphy.config import RunConfig
 from deepphy.runs.records import AttemptRecord
 
+PROMPTS_REMEMBERED = 10_000  # digests known to be on disk without asking the file system
 CONFIG = "config.json"
 ATTEMPTS = "attempts.jsonl"
 ERRORS = "errors.jsonl"
@@ -81,7 +82,6 @@ class RunStore:
             _atomic_write(existing, config.model_dump_json(indent=2).encode())
         store._repair_tail()
         store._fd = os.open(store.path / ATTEMPTS, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-        store._prompts = {p.stem for p in (store.path / "prompts").glob("*.json")}
         return store
 
     def _lock(self) -> None:
@@ -140,9 +140,14 @@ class RunStore:
         return rel
 
     def write_prompt(self, digest: str, text: str) -> None:
-        if digest not in self._prompts:
-            _atomic_write(self.path / "prompts" / f"{digest}.json", text.encode())
-            self._prompts.add(digest)
+        if digest in self._prompts:
+            return
+        target = self.path / "prompts" / f"{digest}.json"
+        if not target.exists():
+            _atomic_write(target, text.encode())
+        if len(self._prompts) >= PROMPTS_REMEMBERED:  # bounded: a long run's memory stays flat
+            self._prompts.clear()
+        self._prompts.add(digest)
 
     def read_frame(self, rel: str) -> bytes:
         return (self.path / rel).read_bytes()
