@@ -24,11 +24,12 @@ start)
   echo "127.0.0.2:$PORT"
   ;;
 stop)
-  # Every process that names this cluster's directory, and all their descendants: Ray's
-  # agents rename themselves (no directory on their command line) and ignore SIGTERM.
+  # Every process that names this cluster's directory or its head's address (the Ray
+  # client server, left behind by `ray start`), and all their descendants: Ray's agents
+  # rename themselves (neither on their command line) and ignore SIGTERM.
   family() {
     local all frontier next p
-    all=$(pgrep -f -- "$DIR" || true)
+    all=$(pgrep -f -- "$DIR|--address=127\.0\.0\.2:$PORT( |\$)" || true)
     frontier=$all
     while [ -n "$frontier" ]; do
       next=""

@@ -18,9 +18,12 @@ from deepphy.runs.store import read_records
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def cluster_family(cluster_dir: str) -> list[psutil.Process]:
-    """The cluster's processes: those naming its directory, and all their descendants."""
-    roots = [p for p in psutil.process_iter(["cmdline"]) if cluster_dir in " ".join(p.info["cmdline"] or [])]
+def cluster_family(cluster_dir: str, port: int) -> list[psutil.Process]:
+    """The cluster's processes: those naming its directory or its head's address (the Ray
+    client server), and all their descendants."""
+    roots = [p for p in psutil.process_iter(["cmdline"])
+             if cluster_dir in " ".join(p.info["cmdline"] or [])
+             or f"--address=127.0.0.2:{port}" in (p.info["cmdline"] or [])]
     family = {p.pid: p for r in roots for p in [r, *r.children(recursive=True)]}
     return list(family.values())
 
@@ -36,8 +39,9 @@ def test_two_node_cluster_run_auth_error_and_clean_stop(tmp_path):
     try:
         assert started.returncode == 0, started.stderr
         address = started.stdout.strip().splitlines()[-1]
-        family = cluster_family(cluster_dir)
+        family = cluster_family(cluster_dir, 6391)
         assert any("Agent" in p.name() for p in family), "the agents (renamed processes) are found as descendants"
+        assert any("ray.util.client.server" in " ".join(p.cmdline()) for p in family), "the Ray client server"
 
         # A client without the token: one line naming the address and the setting, nothing written.
         denied = subprocess.run(
@@ -58,7 +62,7 @@ def test_two_node_cluster_run_auth_error_and_clean_stop(tmp_path):
         # Only the worker node has `physics`: had placement ignored it, workers would pend forever.
         assert run.returncode == 0, run.stderr
         assert len({r.task for r in read_records(tmp_path / "run")}) == 3
-        family = {p.pid: p for p in [*family, *cluster_family(cluster_dir)]}.values()
+        family = {p.pid: p for p in [*family, *cluster_family(cluster_dir, 6391)]}.values()
     finally:
         subprocess.run([str(script), "stop"], env=env, timeout=60)
         time.sleep(1)
@@ -78,6 +82,7 @@ def test_a_node_that_dies_mid_run_loses_nothing(tmp_path):
            "WORKER_CPUS": "1", "RAY_AUTH_MODE": "token", "RAY": str(Path(sys.executable).parent / "ray")}
     script = ROOT / "cluster" / "local-cluster.sh"
     started = subprocess.run([str(script), "start"], env=env, capture_output=True, text=True, timeout=180)
+    family = cluster_family(cluster_dir, 6392)
     try:
         assert started.returncode == 0, started.stderr
         address = started.stdout.strip().splitlines()[-1]
@@ -123,4 +128,7 @@ def test_a_node_that_dies_mid_run_loses_nothing(tmp_path):
               f"{ends[-1] - killed_at:.0f} s after the kill")
     finally:
         subprocess.run([str(script), "stop"], env=env, timeout=60)
+        time.sleep(1)
+        left = [p for p in family if p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
         shutil.rmtree(cluster_dir, ignore_errors=True)
+    assert not left, f"left behind by stop: {sorted(p.name() for p in left)}"
