@@ -15,7 +15,7 @@ import asyncio
 import logging
 import time
 import traceback
-from collections import OrderedDict, defaultdict
+from collections import defaultdict
 from typing import Any, Sequence
 
 import ray
@@ -24,6 +24,7 @@ from ray.exceptions import ActorDiedError, ActorUnavailableError, RayActorError
 from deepphy.actors.env_worker import LostEpisode
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import Action, EnvSpec, Observation, StepResult, Task
+from deepphy.envs.base import ObservationCache
 from deepphy.models import ModelError, ModelRequest, ModelResponse
 from deepphy.protocol import ModelHandle, run_attempt
 from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished
@@ -50,46 +51,24 @@ class BudgetExhausted(RuntimeError):
     """The run's cost budget (--max-cost) is spent; the attempt is left for a resume."""
 
 
-class InitialObservations:
-    """The first observation of recently seen tasks. Reset is deterministic (the contract),
-    so an attempt of a task seen before needs no reset call: its first step carries the
-    task and the worker resets in the same call. Bounded: memory does not grow with a run."""
-
-    def __init__(self, size: int = 256) -> None:
-        self.size = size
-        self.by_task: OrderedDict[str, Observation] = OrderedDict()
-
-    def get(self, task: Task) -> Observation | None:
-        obs = self.by_task.get(task.id)
-        if obs is not None:
-            self.by_task.move_to_end(task.id)
-        return obs
-
-    def put(self, task: Task, obs: Observation) -> None:
-        self.by_task[task.id] = obs
-        while len(self.by_task) > self.size:
-            self.by_task.popitem(last=False)
-
-
 class WorkerEnv:
     """The protocol's `EnvHandle` over one environment worker actor, for one attempt: one
     Ray call per decision (the reset rides with the first step when the observation is
     known; the worker releases the instance when a step ends the attempt)."""
 
-    def __init__(self, worker: Any, episode: str, timeout_s: float, initial: InitialObservations) -> None:
+    def __init__(self, worker: Any, episode: str, timeout_s: float, initial: ObservationCache) -> None:
         self.worker, self.episode, self.timeout_s, self.initial = worker, episode, timeout_s, initial
         self.pending_reset: Task | None = None
         self.held = False  # the worker holds an instance for this attempt
 
     async def reset(self, task: Task) -> Observation:
-        known = self.initial.get(task)
+        known = self.initial.get(task.id)  # reset is deterministic (the contract)
         if known is not None:
             self.pending_reset = task
             return known
         self.held = True
         obs = await self._call(self.worker.reset.remote(self.episode, task))
-        self.initial.put(task, obs)
-        return obs
+        return self.initial.put(task.id, obs)
 
     async def step(self, action: Action) -> StepResult:
         reset, self.pending_reset = self.pending_reset, None
@@ -160,7 +139,7 @@ class Scheduler:
         self.budget_hit = False
         self.in_flight = 0
         self.decisions = 0  # model requests answered in this session
-        self.initial = InitialObservations()
+        self.initial = ObservationCache(256)  # first observations: an attempt's reset rides with its first step
         self.unsent: list[AttemptSummary] = []  # for the metrics actor, sent in batches (flush)
 
     # -- top level --------------------------------------------------------------------

@@ -31,6 +31,7 @@ class EnvWorkerImpl:
     def __init__(self, spec: EnvSpec, options: dict[str, Any], log_path: str | None = None) -> None:
         _redirect_output(log_path)  # library noise (XLA, numba, deprecations) goes to the run's log
         self.cls: type[Environment] = spec.load()
+        self.batches_steps = self.cls.step_many.__func__ is not Environment.step_many.__func__  # type: ignore[attr-defined]
         self.options = self.cls.Options(**options)
         self.live: dict[str, Environment] = {}
         self.idle: list[Environment] = []  # instances are reused: simulators are costly to build
@@ -63,7 +64,14 @@ class EnvWorkerImpl:
         return result
 
     def _drain(self) -> None:
-        batch, self.pending, self.draining = self.pending, [], False
+        if self.batches_steps:
+            batch, self.pending, self.draining = self.pending, [], False
+        else:  # one now, the rest on the loop's next turns (after this result has gone out)
+            batch, self.pending = self.pending[:1], self.pending[1:]
+            if self.pending:
+                asyncio.get_running_loop().call_soon(self._drain)
+            else:
+                self.draining = False
         envs = [self.live[e] for e, _, _ in batch]
         actions = [a for _, a, _ in batch]
         self.batches += 1

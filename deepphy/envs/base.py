@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 from abc import ABC, abstractmethod
+from collections import OrderedDict
 from enum import Enum
 from typing import TYPE_CHECKING, Any, Callable, ClassVar, Sequence
 
@@ -136,6 +137,30 @@ class Observation(BaseModel):
 
     def image(self, name: str) -> Image:
         return next(i for i in self.images if i.name == name)
+
+
+class ObservationCache:
+    """First observations by key (a task, with the options that shape it). Reset is
+    deterministic, so a task's first observation need only be rendered and encoded once:
+    share one cache between the instances of an environment class (a worker holds many), and
+    the driver keeps one too. Bounded (least recently used out), so memory stays flat."""
+
+    def __init__(self, size: int = 128) -> None:
+        self.size = size
+        self._by_key: OrderedDict[Any, Observation] = OrderedDict()
+
+    def get(self, key: Any) -> Observation | None:
+        obs = self._by_key.get(key)
+        if obs is not None:
+            self._by_key.move_to_end(key)
+        return obs
+
+    def put(self, key: Any, obs: Observation) -> Observation:
+        self._by_key[key] = obs
+        self._by_key.move_to_end(key)
+        while len(self._by_key) > self.size:
+            self._by_key.popitem(last=False)
+        return obs
 
 
 class StepResult(BaseModel):

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 
-from deepphy.envs.base import Action, Environment, Observation, StepResult, Task
+from deepphy.envs.base import Action, Environment, Observation, ObservationCache, StepResult, Task
 from deepphy.envs.cuttherope import SPEC
 from deepphy.envs.cuttherope import constants as C
 from deepphy.envs.cuttherope.level import BOX_THEMES, Level, level_ids, load_level
@@ -22,6 +22,9 @@ from deepphy.envs.cuttherope.render import render
 from deepphy.envs.cuttherope.sim import World, seconds_to_steps
 from deepphy.envs.cuttherope.space import CutAction, CutSpace
 from deepphy.envs.images import Image
+
+
+INITIAL = ObservationCache()
 
 
 class CutTheRopeEnv(Environment):
@@ -33,7 +36,6 @@ class CutTheRopeEnv(Environment):
         self.actions = 0
         self.done = False
         self.tapped: list[int] = []
-        self._initial: dict[str, Observation] = {}
 
     @classmethod
     def tasks(cls, options) -> list[Task]:
@@ -43,11 +45,11 @@ class CutTheRopeEnv(Environment):
 
     def reset(self, task: Task) -> Observation:
         level = load_level(task.params.get("level", task.id))
-        if task.id in self._initial:  # every attempt starts from the same scene: render it once
+        known = INITIAL.get(task.id)
+        if known is not None:  # every attempt starts from the same scene: render it once
             self.start(level, observe=False)
-        else:
-            self._initial[task.id] = self.start(level)
-        return self._initial[task.id]
+            return known
+        return INITIAL.put(task.id, self.start(level))
 
     def start(self, level: Level, observe: bool = True) -> Observation | None:
         """Start an attempt of `level` (a level given as data, e.g. one being designed)."""

@@ -26,7 +26,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from deepphy.envs.base import Action, Environment, Observation, StepResult, Task
+from deepphy.envs.base import Action, Environment, Observation, ObservationCache, StepResult, Task
 from deepphy.envs.images import Image, draw_label, stack_frames
 from deepphy.envs.iphyre import SPEC
 from deepphy.envs.iphyre.space import MAX_TIME, IPhyrePlan, IPhyreSpace
@@ -42,6 +42,9 @@ LINK = (0, 160, 0)  # joints and springs
 BLOCK_RADIUS = 10  # iphyre's segment radius
 
 
+INITIAL = ObservationCache()  # every attempt starts from the same scene: render and encode it once
+
+
 class IPhyreEnv(Environment):
     spec = SPEC
 
@@ -49,8 +52,6 @@ class IPhyreEnv(Environment):
         super().__init__(options)
         self._sim: Any = None
         self._task: Task | None = None
-        # Every attempt starts from the same scene: render and encode it once per task.
-        self._initial: dict[str, Observation] = {}
 
     @classmethod
     def tasks(cls, options) -> list[Task]:
@@ -63,23 +64,23 @@ class IPhyreEnv(Environment):
     def reset(self, task: Task) -> Observation:
         self._task = task
         self._centres = _block_centres(task.id)
-        if task.id in self._initial:
-            return self._initial[task.id]  # step() builds its own fresh simulator
+        known = INITIAL.get(task.id)
+        if known is not None:
+            return known  # step() builds its own fresh simulator
         self._sim = _fresh_sim(task.id)
         scene = self.render()
         annotated = self.render(labels=True)
-        self._initial[task.id] = Observation(
+        return INITIAL.put(task.id, Observation(
             images=[
                 Image.from_array("scene", "The scene at t = 0 s.", scene),
                 Image.from_array("annotated", "The same scene with each gray block's index.", annotated),
             ],
             text=self._describe(),
             action_space=IPhyreSpace(num_blocks=len(self._centres)),
-        )
-        return self._initial[task.id]
+        ))
 
     def step(self, action: Action) -> StepResult:
-        assert isinstance(action, IPhyrePlan) and self._sim is not None
+        assert isinstance(action, IPhyrePlan) and self._task is not None, "reset() first"
         clicks = [(self._centres[c.index], c.time) for c in action.clicks]
         success, removed, end_time, frames = self._simulate(clicks)
         end_time = round(end_time, 4)

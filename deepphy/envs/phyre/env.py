@@ -26,7 +26,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
-from deepphy.envs.base import Action, EnvOptions, Environment, Observation, StepResult, Task
+from deepphy.envs.base import Action, EnvOptions, Environment, Observation, ObservationCache, StepResult, Task
 from deepphy.envs.images import Image, draw_label, stack_frames
 from deepphy.envs.phyre import SPEC, data, sim
 from deepphy.envs.phyre.render import render
@@ -67,6 +67,9 @@ def phyre_id(task: Task) -> str:
     return rest.replace("-", ":")
 
 
+INITIAL = ObservationCache()  # every attempt of a task starts from the same scene: render and encode it once
+
+
 class PhyreEnv(Environment):
     spec = SPEC
     Options = PhyreOptions
@@ -74,8 +77,6 @@ class PhyreEnv(Environment):
     def __init__(self, options: PhyreOptions | None = None) -> None:
         super().__init__(options)
         self._task: data.PhyreTask | None = None
-        # Every attempt starts from the same scene: render and encode it once per task.
-        self._initial: dict[str, Observation] = {}
 
     @classmethod
     def tasks(cls, options: PhyreOptions) -> list[Task]:
@@ -99,14 +100,16 @@ class PhyreEnv(Environment):
             self._task = data.load_task(phyre_id(task))
         except KeyError:
             raise ValueError(f"unknown PHYRE task {task.id!r}") from None
-        if task.id not in self._initial:
-            scene = render(self._task, size=self.options.image_size)
-            self._initial[task.id] = Observation(
-                images=[Image.from_array("scene", "The initial scene.", scene), self._overlay(scene)],
-                text=describe_goal(self._task),
-                action_space=self.space,
-            )
-        return self._initial[task.id]
+        key = (task.id, self.options.model_dump_json())
+        known = INITIAL.get(key)
+        if known is not None:
+            return known
+        scene = render(self._task, size=self.options.image_size)
+        return INITIAL.put(key, Observation(
+            images=[Image.from_array("scene", "The initial scene.", scene), self._overlay(scene)],
+            text=describe_goal(self._task),
+            action_space=self.space,
+        ))
 
     def step(self, action: Action) -> StepResult:
         assert self._task is not None, "reset() first"
