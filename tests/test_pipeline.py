@@ -165,4 +165,11 @@ def test_on_the_fly_episodes_through_ray(ray_cluster, tmp_path, env, tasks):
     second = json.loads((tmp_path / "prompts" / f"{multi[0].steps[1].prompt}.json").read_text())
     user = "\n".join(p for m in second for p in m["content"])
     assert "Your earlier decisions in this attempt" in user and f"Step 1: {multi[0].steps[0].action_text}" in user
-    assert max(s["max_batch"] for s in outcome.worker_stats) > 1, outcome.worker_stats
+    # Kinetix overrides step_many (one jitted call for many episodes): waiting episodes are
+    # stepped together. Pooltool does not, so its worker steps one request per loop turn.
+    from deepphy.envs import get_env_class
+    from deepphy.envs.base import Environment
+
+    batching = get_env_class(env).step_many.__func__ is not Environment.step_many.__func__
+    largest = max(s["max_batch"] for s in outcome.worker_stats)
+    assert (largest > 1) if batching else (largest == 1), outcome.worker_stats

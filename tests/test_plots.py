@@ -25,7 +25,7 @@ def dirs(ray_cluster, tmp_path_factory):
         "kinetix": synthetic_run(base / "kin-annotated", tasks=kinetix, runs=3),
         "kinetix-plain": synthetic_run(base / "kin-plain", tasks=kinetix, runs=3, env_options={"annotate": False}),
         "pooltool": synthetic_run(base / "pool", env="pooltool", limit=8, max_steps=15, p_success=0.5),
-        "stars": synthetic_run(base / "stars", env="iphyre", limit=8, stars=True),
+        "stars": synthetic_run(base / "stars", env="angrybirds", limit=8, stars=True),
     }
 
 
@@ -91,7 +91,8 @@ def test_success_by_shot_and_stars(dirs):
 
 def test_which_figures_apply_is_read_from_the_reports(dirs):
     stems = {stem for stem, *_ in figures_for([report_of(d) for d in dirs.values()])}
-    assert stems == {"cumulative_iphyre", "vla_vs_wm", "annotate_kinetix", "by_shot_pooltool", "stars_iphyre"}
+    assert stems == {"cumulative_iphyre", "vla_vs_wm", "annotate_kinetix", "by_shot_pooltool", "by_shot_angrybirds",
+                     "stars_angrybirds"}
     assert figures_for([report_of(dirs["kinetix"])]) == []  # K = 1, one setting: nothing to draw
 
 
@@ -99,7 +100,7 @@ def test_plot_cli_writes_png_pdf_and_the_drawn_data(dirs, tmp_path, capsys):
     out = tmp_path / "figs"
     assert main(["plot", *map(str, dirs.values()), "--out", str(out)]) == 0
     printed = capsys.readouterr().out.split()
-    for stem in ("cumulative_iphyre", "vla_vs_wm", "annotate_kinetix", "by_shot_pooltool", "stars_iphyre"):
+    for stem in ("cumulative_iphyre", "vla_vs_wm", "annotate_kinetix", "by_shot_pooltool", "stars_angrybirds"):
         assert (out / f"{stem}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert (out / f"{stem}.pdf").read_bytes()[:5] == b"%PDF-"
         assert str(out / f"{stem}.png") in printed
