@@ -4,9 +4,13 @@ store) against the local model server over HTTP with a fixed latency per request
 Two parts, printed side by side with their ideal:
 1. a sweep of episodes in flight N: attempts/s measured against the ideal N / latency
    (each episode has one request outstanding), until the machine is CPU-bound;
-2. one long run keeping `--episodes` in flight: a timeline of episodes in flight, attempts
-   done and per second, and the driver's CPU and resident memory, and the driver's memory
-   growth between the first 10% of the attempts and the end.
+2. long runs keeping `--episodes` in flight: a timeline of episodes in flight, attempts
+   done and per second, and the driver's CPU and resident memory. The same run is done
+   twice in one driver. Within a run the driver's memory rises with the in-flight working
+   set (each waiting prompt holds the images of the episode's earlier attempts, and the
+   histories deepen as the run goes on); that set is freed as episodes end. What must not
+   happen is memory that stays per attempt: so the second run is compared with the first,
+   by resident memory at their ends and by live Python objects after each (gc).
 
     uv run python benchmarks/in_flight.py [--latency 1.0] [--sweep 25,50,100] [--episodes 2400]
                                           [--attempts 20000] [--num-cpus 2]
@@ -15,6 +19,7 @@ Two parts, printed side by side with their ideal:
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import sys
 import tempfile
@@ -100,25 +105,29 @@ def main() -> None:
         if args.episodes:
             # I-PHYRE episodes take ~7.5 MOCK attempts on average (reference baseline: ~6).
             runs = max(args.episodes // GAMES, round(args.attempts / 6.0 / GAMES))
-            config = RunConfig(env="iphyre", model="bench", runs=runs, seed=2)
-            with tempfile.TemporaryDirectory() as out:
-                outcome, wall, timeline = run(config, runtime.model_copy(update={"max_in_flight": args.episodes}),
-                                              out, sample_s=10.0)
-                rate = steady_rate(out)
-            print(f"\n{GAMES * runs} episodes, up to {args.episodes} in flight: {outcome.new_records} attempts in "
-                  f"{wall:.0f} s; steady {rate:.1f} attempts/s (ideal at this latency {args.episodes / args.latency:.0f}/s "
-                  "until CPU-bound)")
-            print(f"{'t (s)':>7} {'in flight':>9} {'attempts':>9} {'per s':>7} {'driver CPU %':>12} {'driver RSS MB':>13}")
-            last_t, last_n = 0.0, 0
-            for t, inflight, n, cpu, rss in timeline:
-                print(f"{t:7.0f} {inflight:9d} {n:9d} {(n - last_n) / (t - last_t):7.1f} {cpu:12.0f} {rss:13.0f}")
-                last_t, last_n = t, n
-            if timeline:
-                total = timeline[-1][2] or 1
-                early = next((rss for _, _, n, _, rss in timeline if n >= total / 10), timeline[0][4])
-                print(f"driver memory: {early:.0f} MB at 10% of the attempts, {timeline[-1][4]:.0f} MB at the end "
-                      f"(growth {timeline[-1][4] - early:+.0f} MB over {total - total // 10} attempts); "
-                      f"peak in flight {max(x[1] for x in timeline)}")
+            ends = []
+            for repeat in (1, 2):
+                config = RunConfig(env="iphyre", model="bench", runs=runs, seed=1 + repeat)
+                with tempfile.TemporaryDirectory() as out:
+                    outcome, wall, timeline = run(config, runtime.model_copy(update={"max_in_flight": args.episodes}),
+                                                  out, sample_s=10.0)
+                    rate = steady_rate(out)
+                del outcome
+                gc.collect()
+                ends.append((psutil.Process().memory_info().rss / 2**20, len(gc.get_objects())))
+                print(f"\nrun {repeat}: {GAMES * runs} episodes, up to {args.episodes} in flight: "
+                      f"{timeline[-1][2] if timeline else 0} attempts in {wall:.0f} s; steady {rate:.1f} attempts/s "
+                      f"(ideal at this latency {args.episodes / args.latency:.0f}/s until CPU-bound); "
+                      f"peak in flight {max((x[1] for x in timeline), default=0)}")
+                print(f"{'t (s)':>7} {'in flight':>9} {'attempts':>9} {'per s':>7} {'driver CPU %':>12} {'driver RSS MB':>13}")
+                last_t, last_n = 0.0, 0
+                for t, inflight, n, cpu, rss in timeline:
+                    print(f"{t:7.0f} {inflight:9d} {n:9d} {(n - last_n) / (t - last_t):7.1f} {cpu:12.0f} {rss:13.0f}")
+                    last_t, last_n = t, n
+                print(f"after run {repeat}: driver RSS {ends[-1][0]:.0f} MB, {ends[-1][1]} live Python objects", flush=True)
+            (rss1, obj1), (rss2, obj2) = ends
+            print(f"\ndriver memory, run 2 against run 1 (the same in-flight working set, {timeline[-1][2] if timeline else 0} "
+                  f"more attempts): RSS {rss2 - rss1:+.0f} MB, live Python objects {obj2 - obj1:+d}")
     finally:
         server.terminate()
         ray.shutdown()

@@ -1,6 +1,6 @@
 """The Angry Birds oracle: prove every level winnable with its birds and find its best score.
 
-    deepphy solve --env angrybirds report [--levels s1_l01,...] [--out FILE]
+    deepphy solve --env angrybirds report [--levels s1_l01,...] [--json FILE]
         Replay every level's stored winning plan and print the solvability report (per
         level: birds, pigs, shots the plan needs, its score, the star thresholds, the
         stars the replay earns). Fails (exit 1) if a stored plan no longer wins with its
@@ -209,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     rep = sub.add_parser("report", help="replay the stored plans; print the solvability report")
     rep.add_argument("--levels", help="comma-separated level ids (default: all)")
-    rep.add_argument("--out", help="also write the report as JSON to this file")
+    rep.add_argument("--json", help="also write the report as JSON to this file")
     srch = sub.add_parser("search", help="search the levels again; store plans and star thresholds")
     srch.add_argument("--levels", help="comma-separated level ids (default: all)")
     srch.add_argument("--jobs", type=int, default=2, help="processes (default 2)")
@@ -244,8 +244,8 @@ def main(argv: list[str] | None = None) -> int:
 
     rows = report_rows(ids)
     print_report(rows)
-    if args.out:
-        Path(args.out).write_text(json.dumps(rows, indent=1) + "\n")
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
     return 0 if all(r.get("winnable") and not r.get("problem") for r in rows) else 1
 
 

@@ -1,19 +1,19 @@
 """Solvability of the Cut the Rope levels: replay the stored plans, search for plans, and
 (re)make the level files.
 
-    python -m deepphy.envs.cuttherope.solve report [--levels b1_l01,...] [--json FILE]
+    deepphy solve --env cuttherope report [--levels b1_l01,...] [--json FILE]
         Replay every level's stored plan through the environment (the plan's text, parsed
         and stepped as a model's replies are) and print the solvability report: per box,
         levels proven winnable, the stars of the stored plans, the best stars the search
         found, plan lengths, and how often the reference random agent wins. Seconds.
 
-    python -m deepphy.envs.cuttherope.solve search [--levels ...] [--nodes N] [--jobs N] [--write]
+    deepphy solve --env cuttherope search [--levels ...] [--nodes N] [--jobs N] [--write]
         Run the oracle search (oracle.py) on the stored levels from scratch, with a budget
         of N simulated moves per level (machine-independent), report what it finds, and
         with --write store the best plan found where it has more stars than the stored one
         (or the level has none). Minutes.
 
-    python -m deepphy.envs.cuttherope.solve generate [--boxes 1,2] [--jobs N] [--nodes N]
+    deepphy solve --env cuttherope generate [--boxes 1,2] [--jobs N] [--nodes N]
         Remake the level files of the given boxes with the seeded procedures of design.py:
         propose layouts, keep those the oracle wins with the stage's mechanic, place three
         stars on the winning plan's path, order each stage from easy to hard. Overwrites

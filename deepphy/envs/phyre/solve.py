@@ -1,6 +1,6 @@
 """Solvability of the PHYRE evaluation set: which tasks the grid actions (can) solve.
 
-    python -m deepphy.envs.phyre.solve report [--out FILE] [--setup both] [--fold 0]
+    deepphy solve --env phyre report [--json FILE] [--setup both] [--fold 0]
         [--split test] [--actions grid5] [--continuous N] [--jobs J] [--limit N]
 
 For every distinct PHYRE task of the selected set: simulate every action of the grid
@@ -142,11 +142,12 @@ def report(out: Path, options: PhyreOptions, jobs: int, budget: int, limit: int 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m deepphy.envs.phyre.solve", description=__doc__,
+    parser = argparse.ArgumentParser(prog="deepphy solve --env phyre", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     rep = sub.add_parser("report", help="solvability of the evaluation set by the grid actions")
-    rep.add_argument("--out", default="phyre_solvability.json")
+    rep.add_argument("--json", "--out", dest="json", default="phyre_solvability.json",
+                     help="where to write the JSON report (default %(default)s)")
     rep.add_argument("--setup", default="both", choices=["within", "cross", "both"])
     rep.add_argument("--fold", type=int, default=0)
     rep.add_argument("--split", default="test", choices=["train", "dev", "test"])
@@ -157,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
     rep.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 2) - 1))
     args = parser.parse_args(argv)
     options = PhyreOptions(setup=args.setup, fold=args.fold, split=args.split, actions=args.actions)
-    s = report(Path(args.out), options, args.jobs, args.continuous, args.limit)["summary"]
+    s = report(Path(args.json), options, args.jobs, args.continuous, args.limit)["summary"]
     print(f"{s['tasks']} tasks ({s['setup']}, fold {s['fold']}, {s['split']}); {s['grid']}; "
           f"solvable on the grid: {s['solvable_on_grid']} ({100 * s['fraction_solvable_on_grid']:.1f}%); "
           f"invalid grid actions {100 * s['fraction_of_grid_actions_invalid']:.1f}%; random agent within "
@@ -167,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     for group, g in s["by_setup"].items():
         templates = ", ".join(f"{tpl} {v['solvable_on_grid']}/{v['tasks']}" for tpl, v in g["by_template"].items())
         print(f"  {group}: {g['solvable_on_grid']}/{g['tasks']} solvable on the grid; per template: {templates}")
-    print(f"wrote {args.out}")
+    print(f"wrote {args.json}")
     return 0
 
 
