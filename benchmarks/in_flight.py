@@ -65,8 +65,20 @@ def run(config: RunConfig, runtime: RuntimeOptions, out: str, sample_s: float | 
         if sample_s and thread.is_alive():
             snap = _snapshot()
             timeline.append((time.perf_counter() - t0, snap.get("in_flight", 0), snap.get("attempts", 0),
-                             me.cpu_percent(), me.memory_info().rss / 2**20))
+                             me.cpu_percent(), *driver_memory_mb()))
     return done.get("outcome"), time.perf_counter() - t0, timeline
+
+
+def driver_memory_mb() -> tuple[float, float, float]:
+    """The driver's resident memory in MB: total, anonymous (its heaps) and shared (pages of
+    Ray's object store it has mapped and touched; they stay counted after objects are freed)."""
+    fields = {}
+    with open("/proc/self/status") as f:
+        for line in f:
+            key, _, value = line.partition(":")
+            if key in ("VmRSS", "RssAnon", "RssShmem"):
+                fields[key] = int(value.split()[0]) / 1024
+    return fields.get("VmRSS", 0.0), fields.get("RssAnon", 0.0), fields.get("RssShmem", 0.0)
 
 
 def _snapshot() -> dict:
@@ -114,20 +126,22 @@ def main() -> None:
                     rate = steady_rate(out)
                 del outcome
                 gc.collect()
-                ends.append((psutil.Process().memory_info().rss / 2**20, len(gc.get_objects())))
+                ends.append((*driver_memory_mb(), len(gc.get_objects())))
                 print(f"\nrun {repeat}: {GAMES * runs} episodes, up to {args.episodes} in flight: "
                       f"{timeline[-1][2] if timeline else 0} attempts in {wall:.0f} s; steady {rate:.1f} attempts/s "
                       f"(ideal at this latency {args.episodes / args.latency:.0f}/s until CPU-bound); "
                       f"peak in flight {max((x[1] for x in timeline), default=0)}")
-                print(f"{'t (s)':>7} {'in flight':>9} {'attempts':>9} {'per s':>7} {'driver CPU %':>12} {'driver RSS MB':>13}")
+                print(f"{'t (s)':>7} {'in flight':>9} {'attempts':>9} {'per s':>7} {'driver CPU %':>12} {'driver RSS MB':>13} {'anon':>6} {'shmem':>6}")
                 last_t, last_n = 0.0, 0
-                for t, inflight, n, cpu, rss in timeline:
-                    print(f"{t:7.0f} {inflight:9d} {n:9d} {(n - last_n) / (t - last_t):7.1f} {cpu:12.0f} {rss:13.0f}")
+                for t, inflight, n, cpu, rss, anon, shmem in timeline:
+                    print(f"{t:7.0f} {inflight:9d} {n:9d} {(n - last_n) / (t - last_t):7.1f} {cpu:12.0f} {rss:13.0f} "
+                          f"{anon:6.0f} {shmem:6.0f}")
                     last_t, last_n = t, n
-                print(f"after run {repeat}: driver RSS {ends[-1][0]:.0f} MB, {ends[-1][1]} live Python objects", flush=True)
-            (rss1, obj1), (rss2, obj2) = ends
+                print(f"after run {repeat}: driver RSS {ends[-1][0]:.0f} MB (anonymous {ends[-1][1]:.0f}, shared {ends[-1][2]:.0f}), "
+                      f"{ends[-1][3]} live Python objects", flush=True)
+            (rss1, anon1, _, obj1), (rss2, anon2, _, obj2) = ends
             print(f"\ndriver memory, run 2 against run 1 (the same in-flight working set, {timeline[-1][2] if timeline else 0} "
-                  f"more attempts): RSS {rss2 - rss1:+.0f} MB, live Python objects {obj2 - obj1:+d}")
+                  f"more attempts): RSS {rss2 - rss1:+.0f} MB (anonymous {anon2 - anon1:+.0f}), live Python objects {obj2 - obj1:+d}")
     finally:
         server.terminate()
         ray.shutdown()

@@ -7,11 +7,12 @@ records all import it, and it imports none of them.
 from __future__ import annotations
 
 from enum import Enum
+from pathlib import Path
 from typing import Literal, Union
 
 import cv2
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, model_validator
 
 
 class Image(BaseModel):
@@ -20,13 +21,31 @@ class Image(BaseModel):
 
     Observations carry PNG bytes, not arrays: they cross Ray, go into prompts as base64
     and are written to the run directory as key frames, and PNG is what all three need.
+    An image already on disk (a key frame of an earlier attempt) may name its `file`
+    instead: its bytes are read where the request is encoded, so thousands of waiting
+    prompts do not hold their histories' images in the driver. Read bytes with `load()`.
     """
 
     model_config = ConfigDict(frozen=True)
 
     name: str
     caption: str
-    png: bytes
+    png: bytes = b""
+    file: str | None = None  # absolute path of the PNG, when the bytes are not carried
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "Image":
+        if (self.file is None) == (not self.png):
+            raise ValueError(f"image {self.name!r} needs exactly one of png bytes and a file")
+        return self
+
+    def load(self) -> bytes:
+        """The PNG bytes (read from `file` when the image names one)."""
+        return self.png if self.file is None else Path(self.file).read_bytes()
+
+    def loaded(self) -> "Image":
+        """This image carrying its bytes (for a reader that does not share this file system)."""
+        return self if self.file is None else Image(name=self.name, caption=self.caption, png=self.load())
 
     @classmethod
     def from_array(cls, name: str, caption: str, rgb: np.ndarray) -> "Image":
@@ -41,11 +60,12 @@ class Image(BaseModel):
     @property
     def size(self) -> tuple[int, int]:
         """(width, height) in pixels, read from the PNG header."""
-        return int.from_bytes(self.png[16:20], "big"), int.from_bytes(self.png[20:24], "big")
+        png = self.load()
+        return int.from_bytes(png[16:20], "big"), int.from_bytes(png[20:24], "big")
 
     def to_array(self) -> np.ndarray:
         """Decode to an RGB uint8 array."""
-        bgr = cv2.imdecode(np.frombuffer(self.png, np.uint8), cv2.IMREAD_COLOR)
+        bgr = cv2.imdecode(np.frombuffer(self.load(), np.uint8), cv2.IMREAD_COLOR)
         return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 

@@ -51,7 +51,10 @@ class Artifacts(Protocol):
 
     def write_frame(self, task: str, run: int, attempt: int, name: str, png: bytes) -> str: ...
 
-    def read_frame(self, rel: str) -> bytes: ...
+    def frame_image(self, rel: str, caption: str) -> Image:
+        """A stored key frame as a prompt image (the run store names the file rather than
+        holding its bytes)."""
+        ...
 
 
 async def run_attempt(
@@ -158,10 +161,7 @@ def past_attempt(record: AttemptRecord, spec: EnvSpec, artifacts: Artifacts) -> 
         s.action_text if s.action_text is not None else f"(invalid) {s.raw_output.strip()[:200]}"
         for s in record.steps
     ]
-    frames = [
-        Image(name=f.path.rsplit("/", 1)[-1], caption=f.caption, png=artifacts.read_frame(f.path))
-        for f in record.key_frames
-    ]
+    frames = [artifacts.frame_image(f.path, f.caption) for f in record.key_frames]
     if spec.planning is Planning.ON_THE_FLY:
         frames = frames[-1:]  # the final state; the decisions are listed as text
     return PastAttempt(attempt=record.attempt, actions=actions, outcome=record.feedback, key_frames=frames)
@@ -210,5 +210,5 @@ class MemoryArtifacts:
         self.frames[rel] = png
         return rel
 
-    def read_frame(self, rel: str) -> bytes:
-        return self.frames[rel]
+    def frame_image(self, rel: str, caption: str) -> Image:
+        return Image(name=rel.rsplit("/", 1)[-1], caption=caption, png=self.frames[rel])

@@ -20,7 +20,7 @@ from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.metrics import figures as F
 from deepphy.metrics.live import format_progress
-from deepphy.runs.store import RunDirError, RunStore, read_records
+from deepphy.runs.store import CONFIG, RunDirError, RunStore, read_records
 
 RAY_TIMEOUT_S = 60.0
 # Ray takes 127.0.0.1 as "no address given" and advertises the machine's primary interface;
@@ -240,7 +240,9 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
         else:
             worker = make_model_worker(config.model, spec, name=f"{prefix}/model", models_file=runtime.models_file,
                                        max_concurrency=max(1000, runtime.max_in_flight))
-            model, model_actors = WorkerModel(worker), [worker]
+            probe = store.path / CONFIG
+            shares_files = ray.get(worker.read_file.remote(str(probe.resolve())), timeout=RAY_TIMEOUT_S) == probe.read_bytes()
+            model, model_actors = WorkerModel(worker, shares_files), [worker]
         total = len(tasks) * config.runs
         metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics", run={
             "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})

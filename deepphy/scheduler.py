@@ -97,12 +97,16 @@ class WorkerEnv:
 
 
 class WorkerModel:
-    """The protocol's `ModelHandle` over a model worker actor."""
+    """The protocol's `ModelHandle` over a model worker actor. Key frames of earlier
+    attempts travel as file names (the worker reads them from the run directory) when the
+    worker shares the driver's file system, which it does beside the driver; else as bytes."""
 
-    def __init__(self, worker: Any) -> None:
-        self.worker = worker
+    def __init__(self, worker: Any, shares_files: bool = True) -> None:
+        self.worker, self.shares_files = worker, shares_files
 
     async def complete(self, request: ModelRequest) -> ModelResponse:
+        if not self.shares_files:
+            request = request.with_images_loaded()
         return await self.worker.complete.remote(request)
 
 

@@ -384,3 +384,48 @@ def test_fake_key_never_leaks(server, monkeypatch, caplog, capsys):
     out = capsys.readouterr()
     seen += [out.out, out.err, caplog.text, str(server.bodies()), str(server.stats())]
     assert not [s for s in seen if FAKE_KEY in s or FAKE_KEY[::-1] in s]
+
+
+def test_a_model_worker_without_the_run_directory_is_sent_image_bytes(tmp_path):
+    """Key frames travel by file name only to a worker that can read the driver's files;
+    any other gets the same request with every image's bytes, in the same order."""
+    from deepphy.chat import Image, ImagePart
+    from deepphy.models import ModelResponse
+    from deepphy.scheduler import WorkerModel
+
+    request = iphyre_request(history_frames=2)
+    by_file = []
+    for m in request.messages:
+        content = []
+        for p in m.content:
+            if isinstance(p, ImagePart) and p.image.name.startswith("past"):
+                path = tmp_path / f"{p.image.name}.png"
+                path.write_bytes(p.image.png)
+                p = ImagePart(image=Image(name=p.image.name, caption=p.image.caption, file=str(path)))
+            content.append(p)
+        by_file.append(m.model_copy(update={"content": content}))
+    request_by_file = request.model_copy(update={"messages": by_file})
+
+    class Worker:  # stands in for the actor handle: `complete.remote(request)` is awaitable
+        def __init__(self):
+            self.sent = []
+            self.complete = self
+
+        def remote(self, req):
+            self.sent.append(req)
+            done = asyncio.get_running_loop().create_future()
+            done.set_result(ModelResponse(text="[]"))
+            return done
+
+    def images(req):
+        return [(p.image.name, p.image.png, p.image.file) for m in req.messages for p in m.content
+                if isinstance(p, ImagePart)]
+
+    for shares_files in (True, False):
+        worker = Worker()
+        asyncio.run(WorkerModel(worker, shares_files).complete(request_by_file))
+        (sent,) = worker.sent
+        if shares_files:
+            assert sum(file is not None for _, _, file in images(sent)) == 2
+        else:
+            assert images(sent) == [(name, png, None) for name, png, _ in images(request)]

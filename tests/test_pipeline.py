@@ -173,3 +173,37 @@ def test_on_the_fly_episodes_through_ray(ray_cluster, tmp_path, env, tasks):
     batching = get_env_class(env).step_many.__func__ is not Environment.step_many.__func__
     largest = max(s["max_batch"] for s in outcome.worker_stats)
     assert (largest > 1) if batching else (largest == 1), outcome.worker_stats
+
+
+def test_earlier_frames_reach_the_model_as_stored(ray_cluster, tmp_path):
+    """The driver sends earlier attempts' key frames by file name; the model worker (beside
+    the driver) reads them from the run directory: the provider receives exactly the bytes
+    stored as those attempts' key frames, in order, then the current observation."""
+    import base64
+
+    import yaml
+
+    from deepphy.models.wire import CONTEXT_HEADER, decode_context
+    from deepphy.testing.model_server import ServerConfig, ServerThread
+
+    with ServerThread(ServerConfig(seed=2, record_bodies=500)) as server:
+        models = tmp_path / "models.yaml"
+        models.write_text(yaml.safe_dump({"models": [{
+            "name": "local", "provider": "openai", "model": "deepphy-mock", "base_url": server.url + "/v1",
+            "send_context": True}]}))
+        config = RunConfig(env="iphyre", model="local", runs=1, seed=7, tasks=["support", "hinder"])
+        out = tmp_path / "run"
+        assert evaluate(config, out, RUNTIME.model_copy(update={"models_file": str(models)})).complete
+        bodies = server.bodies()
+    records = {r.key: r for r in read_records(out)}
+    checked = 0
+    for body in bodies:
+        context = decode_context(body["headers"][CONTEXT_HEADER])
+        sent = [base64.b64decode(p["image_url"]["url"].partition(",")[2])
+                for m in body["body"]["messages"] if isinstance(m["content"], list)
+                for p in m["content"] if p["type"] == "image_url"]
+        stored = [(out / f.path).read_bytes() for k in range(1, context.attempt)
+                  for f in records[(context.task_id, context.run, k)].key_frames]
+        assert sent[:len(stored)] == stored and len(sent) > len(stored)
+        checked += len(stored) > 0
+    assert checked >= 3  # requests that carried earlier attempts' frames (4 with this seed)

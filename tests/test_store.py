@@ -1,5 +1,6 @@
 """The run directory: append-only log, torn-line repair, config checks, locking."""
 
+import numpy as np
 import pytest
 
 from deepphy.config import RunConfig
@@ -67,3 +68,21 @@ def test_unreadable_directories(tmp_path):
     f.write_text("x")
     with pytest.raises(RunDirError, match="not a directory"):
         RunStore.create_or_resume(f, RunConfig())
+
+
+def test_key_frames_come_back_as_files_not_bytes(tmp_path):
+    """The store hands earlier key frames to prompts by file name: nothing is read until a
+    model client encodes the request (`load`)."""
+    from deepphy.chat import Image
+
+    store = RunStore.create_or_resume(tmp_path / "run", RunConfig(env="iphyre", model="mock"))
+    png = Image.from_array("f", "c", np.zeros((4, 6, 3), np.uint8)).png
+    rel = store.write_frame("support", 0, 1, "s1_outcome", png)
+    image = store.frame_image(rel, "the outcome")
+    assert image.png == b"" and image.file == str((tmp_path / "run" / rel).resolve())
+    assert image.load() == png and image.size == (6, 4)
+    assert image.loaded().png == png and image.loaded().file is None
+    with pytest.raises(ValueError, match="exactly one"):
+        Image(name="x", caption="c")
+    with pytest.raises(ValueError, match="exactly one"):
+        Image(name="x", caption="c", png=png, file=image.file)

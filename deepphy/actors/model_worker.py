@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import ray
 
 from deepphy.actors.placement import beside_driver
@@ -23,6 +25,14 @@ class ModelWorkerImpl:
 
     async def complete(self, request: ModelRequest) -> ModelResponse:
         return await self.client.complete(request)
+
+    def read_file(self, path: str) -> bytes | None:
+        """`path`'s bytes on this worker's file system, None if it has no such file: the
+        driver asks once whether the worker can read the run directory's key frames."""
+        try:
+            return Path(path).read_bytes()
+        except OSError:
+            return None
 
 
 def make_model_worker(model: str, spec: EnvSpec, *, name: str | None = None, models_file: str | None = None,

@@ -11,7 +11,7 @@ from typing import Any
 
 from pydantic import BaseModel, Field
 
-from deepphy.chat import Message, PromptFormat, Usage
+from deepphy.chat import ImagePart, Message, PromptFormat, Usage
 
 
 class RequestContext(BaseModel):
@@ -34,6 +34,16 @@ class ModelRequest(BaseModel):
     temperature: float = 0.1
     max_tokens: int = 1024
     context: RequestContext
+
+    def with_images_loaded(self) -> "ModelRequest":
+        """This request with every image carrying its bytes, for a reader on another file system."""
+        messages = [
+            m.model_copy(update={"content": [
+                p.model_copy(update={"image": p.image.loaded()}) if isinstance(p, ImagePart) else p for p in m.content
+            ]})
+            for m in self.messages
+        ]
+        return self.model_copy(update={"messages": messages})
 
 
 class ModelResponse(BaseModel):

@@ -50,7 +50,7 @@ class OpenAIChatClient(HTTPModelClient):
             if isinstance(p, TextPart):
                 content.append({"type": "text", "text": p.text})
             else:
-                content.append({"type": "image_url", "image_url": {"url": f"data:image/png;base64,{png_b64(p.image.png)}"}})
+                content.append({"type": "image_url", "image_url": {"url": f"data:image/png;base64,{png_b64(p.image.load())}"}})
         return {"role": m.role, "content": content}
 
     def build_body(self, request: ModelRequest, messages: list[Message], max_tokens: int) -> dict[str, Any]:
@@ -88,7 +88,7 @@ class AnthropicClient(HTTPModelClient):
     def block(p: TextPart | ImagePart) -> dict[str, Any]:
         if isinstance(p, TextPart):
             return {"type": "text", "text": p.text}
-        return {"type": "image", "source": {"type": "base64", "media_type": "image/png", "data": png_b64(p.image.png)}}
+        return {"type": "image", "source": {"type": "base64", "media_type": "image/png", "data": png_b64(p.image.load())}}
 
     def build_body(self, request: ModelRequest, messages: list[Message], max_tokens: int) -> dict[str, Any]:
         cfg = self.config
@@ -131,7 +131,7 @@ class GeminiClient(HTTPModelClient):
     def part(p: TextPart | ImagePart) -> dict[str, Any]:
         if isinstance(p, TextPart):
             return {"text": p.text}
-        return {"inlineData": {"mimeType": "image/png", "data": png_b64(p.image.png)}}
+        return {"inlineData": {"mimeType": "image/png", "data": png_b64(p.image.load())}}
 
     def build_body(self, request: ModelRequest, messages: list[Message], max_tokens: int) -> dict[str, Any]:
         cfg = self.config

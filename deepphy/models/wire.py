@@ -57,7 +57,7 @@ def estimate_input_tokens(messages: list[Message]) -> int:
     for m in messages:
         n += 4
         for p in m.content:
-            n += text_tokens(p.text) if isinstance(p, TextPart) else image_tokens(p.image.png)
+            n += text_tokens(p.text) if isinstance(p, TextPart) else image_tokens(p.image.load())
     return n
 
 

@@ -173,7 +173,7 @@ def prompt_digest(messages: list[Message]) -> str:
     for m in messages:
         h.update(m.role.encode())
         for p in m.content:
-            h.update(p.text.encode() if isinstance(p, TextPart) else hashlib.sha256(p.image.png).digest())
+            h.update(p.text.encode() if isinstance(p, TextPart) else hashlib.sha256(p.image.load()).digest())
     return h.hexdigest()[:20]
 
 

@@ -25,6 +25,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
+from deepphy.chat import Image
 from deepphy.config import RunConfig
 from deepphy.runs.records import AttemptRecord
 
@@ -149,8 +150,9 @@ class RunStore:
             self._prompts.clear()
         self._prompts.add(digest)
 
-    def read_frame(self, rel: str) -> bytes:
-        return (self.path / rel).read_bytes()
+    def frame_image(self, rel: str, caption: str) -> Image:
+        # By file: a waiting prompt holds the path, not the bytes (read where it is encoded).
+        return Image(name=rel.rsplit("/", 1)[-1], caption=caption, file=str((self.path / rel).resolve()))
 
 
 # -- reading (no lock needed: the log only grows by whole lines) ---------------------
