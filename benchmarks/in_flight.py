@@ -19,6 +19,7 @@ Two parts, printed side by side with their ideal:
 from __future__ import annotations
 
 import argparse
+import ctypes
 import gc
 import os
 import sys
@@ -81,6 +82,15 @@ def driver_memory_mb() -> tuple[float, float, float]:
     return fields.get("VmRSS", 0.0), fields.get("RssAnon", 0.0), fields.get("RssShmem", 0.0)
 
 
+def trim() -> None:
+    """Hand the C heap's free pages back to the OS (glibc): what RSS keeps after this is
+    memory in use, not free memory the allocator holds on to."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc
+        pass
+
+
 def _snapshot() -> dict:
     for actor in ray.util.list_named_actors(all_namespaces=True):
         if actor["name"].startswith("deepphy/") and actor["name"].endswith("/metrics"):
@@ -98,6 +108,7 @@ def main() -> None:
     ap.add_argument("--sweep", default="25,50,100", help="episodes in flight for part 1 ('' to skip)")
     ap.add_argument("--episodes", type=int, default=2400, help="episodes in flight for part 2 (0 to skip)")
     ap.add_argument("--attempts", type=int, default=20_000, help="about this many attempts in part 2")
+    ap.add_argument("--repeats", type=int, default=2, help="long runs, one after another in this driver")
     ap.add_argument("--num-cpus", type=int, default=2)
     args = ap.parse_args()
 
@@ -117,8 +128,10 @@ def main() -> None:
         if args.episodes:
             # I-PHYRE episodes take ~7.5 MOCK attempts on average (reference baseline: ~6).
             runs = max(args.episodes // GAMES, round(args.attempts / 6.0 / GAMES))
+            before = driver_memory_mb()
+            print(f"\nbefore the runs: driver RSS {before[0]:.0f} MB (anonymous {before[1]:.0f})", flush=True)
             ends = []
-            for repeat in (1, 2):
+            for repeat in range(1, args.repeats + 1):
                 config = RunConfig(env="iphyre", model="bench", runs=runs, seed=1 + repeat)
                 with tempfile.TemporaryDirectory() as out:
                     outcome, wall, timeline = run(config, runtime.model_copy(update={"max_in_flight": args.episodes}),
@@ -126,22 +139,31 @@ def main() -> None:
                     rate = steady_rate(out)
                 del outcome
                 gc.collect()
-                ends.append((*driver_memory_mb(), len(gc.get_objects())))
+                end = driver_memory_mb()
+                trim()
+                ends.append((end, driver_memory_mb(), len(gc.get_objects())))
                 print(f"\nrun {repeat}: {GAMES * runs} episodes, up to {args.episodes} in flight: "
                       f"{timeline[-1][2] if timeline else 0} attempts in {wall:.0f} s; steady {rate:.1f} attempts/s "
                       f"(ideal at this latency {args.episodes / args.latency:.0f}/s until CPU-bound); "
                       f"peak in flight {max((x[1] for x in timeline), default=0)}")
-                print(f"{'t (s)':>7} {'in flight':>9} {'attempts':>9} {'per s':>7} {'driver CPU %':>12} {'driver RSS MB':>13} {'anon':>6} {'shmem':>6}")
+                print(f"{'t (s)':>7} {'in flight':>9} {'attempts':>9} {'per s':>7} {'driver CPU %':>12} "
+                      f"{'driver RSS MB':>13} {'anon':>6} {'shmem':>6}")
                 last_t, last_n = 0.0, 0
                 for t, inflight, n, cpu, rss, anon, shmem in timeline:
                     print(f"{t:7.0f} {inflight:9d} {n:9d} {(n - last_n) / (t - last_t):7.1f} {cpu:12.0f} {rss:13.0f} "
                           f"{anon:6.0f} {shmem:6.0f}")
                     last_t, last_n = t, n
-                print(f"after run {repeat}: driver RSS {ends[-1][0]:.0f} MB (anonymous {ends[-1][1]:.0f}, shared {ends[-1][2]:.0f}), "
-                      f"{ends[-1][3]} live Python objects", flush=True)
-            (rss1, anon1, _, obj1), (rss2, anon2, _, obj2) = ends
-            print(f"\ndriver memory, run 2 against run 1 (the same in-flight working set, {timeline[-1][2] if timeline else 0} "
-                  f"more attempts): RSS {rss2 - rss1:+.0f} MB (anonymous {anon2 - anon1:+.0f}), live Python objects {obj2 - obj1:+d}")
+                if len(timeline) >= 2:
+                    (_, _, n0, _, rss0, *_), (_, _, n1, _, rss1, *_) = timeline[1], timeline[-1]
+                    print(f"within run {repeat}: RSS {rss1 - rss0:+.0f} MB from attempt {n0} to {n1} "
+                          f"({n1 - n0} attempts)")
+                (rss, anon, _), (rss_t, anon_t, _), objects = ends[-1]
+                print(f"after run {repeat}: driver RSS {rss:.0f} MB (anonymous {anon:.0f}); after malloc_trim "
+                      f"{rss_t:.0f} MB (anonymous {anon_t:.0f}); {objects} live Python objects", flush=True)
+            first, last = ends[0], ends[-1]
+            print(f"\ndriver memory after run {len(ends)} against after run 1 ({len(ends) - 1} x ~{timeline[-1][2] if timeline else 0} "
+                  f"more attempts, the same in-flight working set): RSS {last[0][0] - first[0][0]:+.0f} MB, after malloc_trim "
+                  f"{last[1][0] - first[1][0]:+.0f} MB, live Python objects {last[2] - first[2]:+d}")
     finally:
         server.terminate()
         ray.shutdown()

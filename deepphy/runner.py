@@ -216,6 +216,7 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
     RunStore.check(out, config)  # a directory holding another run fails before Ray starts
     started_ray = ensure_ray(runtime)  # no cluster at the address: fails before the directory is made
     actors: list[Any] = []
+    model_actors: list[Any] = []
     try:
         store = RunStore.create_or_resume(out, config)
     except BaseException:
@@ -265,6 +266,13 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
         )
     finally:
         store.close()
+        # A model worker closes its connections itself, or its client complains as it dies.
+        try:
+            closing = [worker.close.remote() for worker in model_actors]
+            if closing:
+                ray.wait(closing, num_returns=len(closing), timeout=10)
+        except Exception:  # noqa: BLE001 - a lost worker has nothing to close
+            pass
         for actor in actors:
             try:
                 ray.kill(actor)

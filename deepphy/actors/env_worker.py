@@ -122,6 +122,13 @@ def make_env_worker(spec: EnvSpec, options: dict[str, Any], *, name: str | None 
 
     `resource` places it only on nodes that declare that custom resource (e.g. `physics`);
     a token amount is asked so CPUs, not the resource, bound the number of workers."""
-    actor = ray.remote(num_cpus=1, max_restarts=max_restarts, max_concurrency=max_concurrency)(EnvWorkerImpl)
     resources = {resource: 0.001} if resource else None
-    return actor.options(name=name, resources=resources, scheduling_strategy="SPREAD").remote(spec, options, log_path)
+    return EnvWorker.options(
+        num_cpus=1, max_restarts=max_restarts, max_concurrency=max_concurrency, name=name, resources=resources,
+        scheduling_strategy="SPREAD",
+    ).remote(spec, options, log_path)
+
+
+# One actor class per process, options per run: a class made per run is exported to the
+# cluster and remembered by this driver each time (memory that grew with every run).
+EnvWorker = ray.remote(EnvWorkerImpl)

@@ -29,5 +29,8 @@ class MetricsImpl:
 
 def make_metrics_actor(episodes_total: int, max_attempts: int, *, name: str | None = None,
                        run: dict[str, Any] | None = None):
-    return ray.remote(num_cpus=0)(MetricsImpl).options(name=name, scheduling_strategy=beside_driver()).remote(
+    return MetricsActor.options(num_cpus=0, name=name, scheduling_strategy=beside_driver()).remote(
         episodes_total, max_attempts, run)
+
+
+MetricsActor = ray.remote(MetricsImpl)  # one class per process (see env_worker.EnvWorker)

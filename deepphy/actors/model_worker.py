@@ -26,6 +26,10 @@ class ModelWorkerImpl:
     async def complete(self, request: ModelRequest) -> ModelResponse:
         return await self.client.complete(request)
 
+    async def close(self) -> None:
+        """Close the client's connections (before the actor is killed at the end of a run)."""
+        await self.client.close()
+
     def read_file(self, path: str) -> bytes | None:
         """`path`'s bytes on this worker's file system, None if it has no such file: the
         driver asks once whether the worker can read the run directory's key frames."""
@@ -39,5 +43,10 @@ def make_model_worker(model: str, spec: EnvSpec, *, name: str | None = None, mod
                       max_concurrency: int = 1000):
     """`max_concurrency`: requests handled at once (a run passes its episodes in flight)."""
     # Stateless: a crashed worker is restarted and its in-flight calls retried by Ray.
-    actor = ray.remote(num_cpus=0, max_restarts=5, max_task_retries=3, max_concurrency=max_concurrency)(ModelWorkerImpl)
-    return actor.options(name=name, scheduling_strategy=beside_driver()).remote(model, spec, models_file)
+    return ModelWorker.options(
+        num_cpus=0, max_restarts=5, max_task_retries=3, max_concurrency=max_concurrency, name=name,
+        scheduling_strategy=beside_driver(),
+    ).remote(model, spec, models_file)
+
+
+ModelWorker = ray.remote(ModelWorkerImpl)  # one class per process (see env_worker.EnvWorker)
