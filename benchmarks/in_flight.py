@@ -5,15 +5,16 @@ Two parts, printed side by side with their ideal:
 1. a sweep of episodes in flight N: attempts/s measured against the ideal N / latency
    (each episode has one request outstanding), until the machine is CPU-bound;
 2. long runs keeping `--episodes` in flight: a timeline of episodes in flight, attempts
-   done and per second, and the driver's CPU and resident memory. The same run is done
-   twice in one driver. Within a run the driver's memory rises with the in-flight working
-   set (each waiting prompt holds the images of the episode's earlier attempts, and the
-   histories deepen as the run goes on); that set is freed as episodes end. What must not
-   happen is memory that stays per attempt: so the second run is compared with the first,
-   by resident memory at their ends and by live Python objects after each (gc).
+   done and per second, and the driver's CPU and resident memory (anonymous and shared).
+   The same size of run is done `--repeats` times in one driver. The first run grows the
+   heap to the working set of that many episodes in flight (their requests, Ray's copies,
+   their records so far); later runs reuse it. What must not happen is memory that stays
+   per attempt: so each run prints its growth from its second sample to its end, and after
+   each run the driver's memory is printed before and after malloc_trim (free heap the C
+   allocator keeps is not memory in use) with the count of live Python objects (gc).
 
     uv run python benchmarks/in_flight.py [--latency 1.0] [--sweep 25,50,100] [--episodes 2400]
-                                          [--attempts 20000] [--num-cpus 2]
+                                          [--attempts 20000] [--repeats 2] [--num-cpus 2]
 """
 
 from __future__ import annotations
