@@ -241,8 +241,9 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
         else:
             worker = make_model_worker(config.model, spec, name=f"{prefix}/model", models_file=runtime.models_file,
                                        max_concurrency=max(1000, runtime.max_in_flight))
-            probe = store.path / CONFIG
-            shares_files = ray.get(worker.read_file.remote(str(probe.resolve())), timeout=RAY_TIMEOUT_S) == probe.read_bytes()
+            probe = (store.path / CONFIG).resolve()
+            seen = ray.get(worker.read_file.remote(str(probe)), timeout=RAY_TIMEOUT_S)
+            shares_files = seen == probe.read_bytes()
             model, model_actors = WorkerModel(worker, shares_files), [worker]
         total = len(tasks) * config.runs
         metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics", run={

@@ -43,6 +43,7 @@ class RunDirError(RuntimeError):
 class RunStore:
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
+        self._root = self.path.resolve()  # resolved once, not for every key frame handed out
         self._fd: int | None = None
         self._lock_fd: int | None = None
         self._prompts: set[str] = set()
@@ -152,7 +153,7 @@ class RunStore:
 
     def frame_image(self, rel: str, caption: str) -> Image:
         # By file: a waiting prompt holds the path, not the bytes (read where it is encoded).
-        return Image(name=rel.rsplit("/", 1)[-1], caption=caption, file=str((self.path / rel).resolve()))
+        return Image(name=rel.rsplit("/", 1)[-1], caption=caption, file=str(self._root / rel))
 
 
 # -- reading (no lock needed: the log only grows by whole lines) ---------------------
