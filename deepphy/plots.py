@@ -73,6 +73,12 @@ def _percent_limits(top: float) -> float:
     return float(max(10, 10 * math.ceil(top * 1.15 / 10)))
 
 
+def _clipped(values: Sequence[float], errs: Sequence[float], top: float | None = 1.0) -> list[list[float]]:
+    """Error bars (mean ± std) cut at 0 and at `top`: no bar reaches below 0 % or above 100 %."""
+    return [[min(e, v) for v, e in zip(values, errs)],
+            [e if top is None else min(e, top - v) for v, e in zip(values, errs)]]
+
+
 def _slot_limits(ax: Axes, n: int) -> None:
     """x limits for n slots at 0..n-1, centred in at least MIN_SLOTS slots."""
     pad = (max(n, MIN_SLOTS) - n) / 2
@@ -100,12 +106,12 @@ def draw_cumulative_bars(ax: Axes, reports: Sequence[Report], checkpoints: Seque
                    edgecolor="white", linewidth=0.5,
                    label=(f"attempt {c}" if j == 0 else f"attempts {cps[j - 1] + 1}-{c}") if i == 0 else None)
             bottom += seg
-        err = 100 * (s["success_at"][cps[-1] - 1] or 0)
-        ax.errorbar(i, 100 * success[-1], yerr=err, color="black", capsize=3, linewidth=1)
+        (low,), (high,) = _clipped([success[-1]], [s["success_at"][cps[-1] - 1] or 0])
+        ax.errorbar(i, 100 * success[-1], yerr=[[100 * low], [100 * high]], color="black", capsize=3, linewidth=1)
         avg = m["avg_attempts"]
-        ax.annotate("-" if avg is None else f"{avg:.2f}", (i, 100 * success[-1] + err), xytext=(0, 4),
+        ax.annotate("-" if avg is None else f"{avg:.2f}", (i, 100 * (success[-1] + high)), xytext=(0, 4),
                     textcoords="offset points", ha="center", fontsize=8)
-        top = max(top, 100 * success[-1] + err)
+        top = max(top, 100 * (success[-1] + high))
         drawn["checkpoints"].append(cps)
         drawn["success"].append(success)
         drawn["segments"].append(segments)
@@ -189,9 +195,11 @@ def draw_group_bars(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
             values.append(None if sec is None else sec["mean"]["success_at"][-1])
             errs.append(0.0 if sec is None else sec["std"]["success_at"][-1] or 0.0)
         xs = [j + (i - (len(grouped) - 1) / 2) * width for j in range(len(groups))]
+        low, high = _clipped([v or 0 for v in values], errs)
         ax.bar(xs, [100 * (v or 0) for v in values], width=width * 0.92, color=COLORS[i % len(COLORS)],
-               yerr=[100 * e for e in errs], capsize=2, error_kw={"linewidth": 0.8}, label=names[i])
-        top = max([top] + [100 * ((v or 0) + e) for v, e in zip(values, errs)])
+               yerr=[[100 * e for e in low], [100 * e for e in high]], capsize=2, error_kw={"linewidth": 0.8},
+               label=names[i])
+        top = max([top] + [100 * ((v or 0) + e) for v, e in zip(values, high)])
         drawn["bars"].append({"label": names[i], "success": values, "std": errs})
     _style(ax)
     ax.set_xticks(range(len(groups)), groups)
@@ -290,9 +298,9 @@ def draw_ablation_dumbbell(ax: Axes, reports: Sequence[Report], option: str = AB
         ax.plot([100 * row["without"], 100 * row["with"]], [y, y], color="#9ca3af", zorder=1)
         # a ring and a dot: both stay visible when the two values are equal
         ax.scatter(100 * row["with"], y, s=110, facecolors="none", edgecolors=COLORS[0], linewidths=2, zorder=2,
-                   label=f"with {option} ({option}=true)" if y == 0 else None)
+                   label=f"{option}=true" if y == 0 else None)
         ax.scatter(100 * row["without"], y, s=30, color=COLORS[5], zorder=3,
-                   label=f"without ({option}=false)" if y == 0 else None)
+                   label=f"{option}=false" if y == 0 else None)
     _style(ax, "x")
     ax.set_yticks(range(len(drawn["rows"])), [r["label"] for r in drawn["rows"]])
     ax.invert_yaxis()
@@ -324,7 +332,7 @@ def draw_star_bars(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
         errs = [sd["levels_with"][c] or 0 for c in counts]
         xs = [j + (i - (len(starred) - 1) / 2) * width for j in range(len(counts))]
         ax.bar(xs, values, width=width * 0.92, color=COLORS[i % len(COLORS)],
-               yerr=errs, capsize=2, error_kw={"linewidth": 0.8},
+               yerr=_clipped(values, errs, top=None), capsize=2, error_kw={"linewidth": 0.8},
                label=f"{names[i]} ({st['mean_all']:.2f} stars per level)")
         drawn["levels_with"].append(values)
         drawn["std"].append(errs)

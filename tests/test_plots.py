@@ -188,8 +188,9 @@ def test_latex_is_the_report_table(dirs, capsys):
     lines = latex.splitlines()
     assert lines[0].endswith(LATEX_PREAMBLE) and lines[-1] == r"\end{table}"
     assert r"\caption{I-PHYRE: mock VLA; mock WM; 2 run(s), seed 3." in latex
+    assert r"\label{tab:deepphy-iphyre-mock-vla-mock-wm}" in latex
     # the blocks, side by side again, are the table
-    blocks = [b.splitlines() for b in latex.split(r"\begin{tabular}")[1:]]
+    blocks = [b.splitlines() for b in latex.split(r"\begin{tabular}{")[2:]]  # the first holds the others
     assert len(blocks) > 1  # 16 columns: split
     got_header, got_rows = [], [[] for _ in rows]
     for n, block in enumerate(blocks):

@@ -7,6 +7,7 @@ import csv
 import hashlib
 import io
 import json
+import re
 from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
@@ -17,7 +18,7 @@ from deepphy.metrics import figures as F
 from deepphy.runs.records import AttemptRecord
 
 TEXT_WIDTH = 120  # characters: a wider text table is split into blocks of column groups
-LATEX_WIDTH = 90  # characters of plain cell text per LaTeX tabular (then scaled to \linewidth if wider)
+LATEX_WIDTH = 80  # characters of plain cell text per LaTeX block (~ an article's \linewidth at 10 pt)
 LATEX_PREAMBLE = r"\usepackage{booktabs}\usepackage{graphicx}"
 
 
@@ -409,39 +410,41 @@ def _latex_caption(reports: list[dict[str, Any]]) -> str:
     runs = "/".join(str(r) for r in dict.fromkeys(r["runs"] for r in reports))
     seeds = "/".join(str(r) for r in dict.fromkeys(r["seed"] for r in reports))
     who = "; ".join(setting(r) for r in reports)
-    return latex_escape(f"{reports[0]['title']}: {who}; {runs} run(s), seed {seeds}. {table_key(reports)}.")
+    return _latex_cell(f"{reports[0]['title']}: {who}; {runs} run(s), seed {seeds}. {table_key(reports)}.")
 
 
 def render_latex(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
     """A `table` float: caption (environment, model, format, runs, the columns' key), then
     the report's table as booktabs `tabular`s, split between column groups where it is
-    wide, each scaled down to the line width if it is still wider.
-    Needs `\\usepackage{booktabs}` and `\\usepackage{graphicx}` (LATEX_PREAMBLE)."""
+    wide and stacked in one box, scaled down (all by the same factor) to the line width
+    if it is still wider. Needs `\\usepackage{booktabs}` and `\\usepackage{graphicx}`
+    (LATEX_PREAMBLE)."""
     reports = _as_list(reports)
     t = _table(reports)
+    label = re.sub(r"[^a-z0-9]+", "-", " ".join([reports[0]["env"], *(setting(r) for r in reports)]).lower())
     lines = [
         f"% deepphy report --latex; preamble: {LATEX_PREAMBLE}",
         r"\begin{table}[htbp]",
         r"\centering",
         r"\caption{" + _latex_caption(reports) + "}",
-        r"\label{tab:deepphy-" + reports[0]["env"] + "}",
+        r"\label{tab:deepphy-" + label.strip("-") + "}",
+        r"\resizebox{\ifdim\width>\linewidth\linewidth\else\width\fi}{!}{%",
+        r"\begin{tabular}{@{}l@{}}",
     ]
     for n, columns in enumerate(t.blocks(LATEX_WIDTH)):
         header, rows = t.block(columns)
         numeric = [all(_is_figure(r[i]) for r in rows) for i in range(len(header))]
-        if n:
-            lines.append(r"\par\medskip")
         lines += [
-            r"\resizebox{\ifdim\width>\linewidth\linewidth\else\width\fi}{!}{%",
+            *([r"\\ \noalign{\vskip 2ex}"] if n else []),  # \\[2ex] would not add to a row this deep
             r"\begin{tabular}{" + "".join("r" if x else "l" for x in numeric) + "}",
             r"\toprule",
             " & ".join(_latex_cell(h) for h in header) + r" \\",
             r"\midrule",
             *(" & ".join(_latex_cell(c) for c in r) + r" \\" for r in rows),
             r"\bottomrule",
-            r"\end{tabular}}",
+            r"\end{tabular}",
         ]
-    lines.append(r"\end{table}")
+    lines += [r"\end{tabular}}", r"\end{table}"]
     return "\n".join(lines)
 
 
