@@ -197,3 +197,16 @@ def test_show_kinetix_prints_no_library_warnings(tmp_path):
                            "s_h0_weak_thrust", "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
     assert done.returncode == 0 and done.stderr == "", done.stderr
     assert len(done.stdout.splitlines()) == 3  # two images and the text state
+
+
+def test_report_and_plot_flag_runs_of_different_task_sets(tmp_path, capsys):
+    from dashboard_support import synthetic_run
+
+    a = synthetic_run(tmp_path / "a", env="iphyre", limit=3, runs=1)
+    b = synthetic_run(tmp_path / "b", env="iphyre", limit=2, runs=1, fmt="wm")
+    assert main(["report", str(a), str(b)]) == 0
+    out, err = capsys.readouterr()
+    assert "note: these runs evaluate different task sets (mock VLA: n=3, mock WM: n=2)" in out and not err
+    for argv in (["report", "--csv", str(a), str(b)], ["plot", str(a), str(b), "--out", str(tmp_path / "figs")]):
+        assert main(argv) == 0
+        assert capsys.readouterr().err.startswith("deepphy: warning: these runs evaluate different task sets")

@@ -259,6 +259,8 @@ def test_runs_of_different_task_sets_are_flagged():
     note = mixed_task_sets([a, b])
     assert note and "n=3" in note and "n=2" in note
     assert f"note: {note}" in render_text([a, b])
+    other = build_report(RunConfig(runs=1, format="wm"), [Task(env="iphyre", id=t) for t in "abd"], records, k_max=10)
+    assert "n=3 each, other tasks" in mixed_task_sets([a, other])  # as many tasks, not the same ones
 
 
 def test_text_table_stays_within_its_width_with_every_column(tmp_path):

@@ -145,8 +145,10 @@ def mixed_task_sets(reports: Sequence[dict[str, Any]]) -> str | None:
     """A warning when reports to be compared evaluate different task sets, else None."""
     if len({r["task_set"] for r in reports}) < 2:
         return None
-    sizes = ", ".join(f"{setting(r)}: n={r['overall']['tasks']}" for r in reports)
-    return f"these runs evaluate different task sets ({sizes}): their rows are not comparable"
+    sizes = {r["overall"]["tasks"] for r in reports}
+    which = (f"n={sizes.pop()} each, other tasks" if len(sizes) == 1
+             else ", ".join(f"{setting(r)}: n={r['overall']['tasks']}" for r in reports))
+    return f"these runs evaluate different task sets ({which}): their rows are not comparable"
 
 
 # -- rendering --------------------------------------------------------------------------
