@@ -8,6 +8,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
+from deepphy import __version__
 from deepphy.config import DEFAULT_OUT, RunConfig, RuntimeOptions
 
 
@@ -22,6 +23,7 @@ class Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="deepphy", description="Evaluate vision-language models on interactive physics (DeepPHY).")
+    p.add_argument("--version", action="version", version=f"deepphy {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
 
     run = sub.add_parser("run", help="run or resume an evaluation into a run directory")
@@ -58,8 +60,11 @@ def build_parser() -> argparse.ArgumentParser:
     envs = sub.add_parser("envs", help="list environments and their task counts")
     envs.add_argument("--tasks", metavar="ENV", help="list the task ids of one environment")
 
-    watch = sub.add_parser("watch", help="stream the live progress of the runs on a Ray cluster")
-    watch.add_argument("--address", required=True, help="the cluster's address (as given to `run --address`)")
+    watch = sub.add_parser("watch", help="stream the live progress of a run, or of every run on a Ray cluster")
+    watch.add_argument("run_dir", nargs="?", metavar="RUN_DIR",
+                       help="a run directory a `deepphy run` is writing now (a local run included): joins its Ray "
+                            "cluster and follows that run until it ends")
+    watch.add_argument("--address", help="a Ray cluster's address (as given to `run --address`): every run on it")
     watch.add_argument("--interval", type=float, default=2.0, help="seconds between snapshots; default 2")
     watch.add_argument("--once", action="store_true", help="print one snapshot per live run and exit")
     watch.add_argument("--json", action="store_true", help="one JSON object per line (for dashboards)")
@@ -80,11 +85,15 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
     export.add_argument("--out", required=True, help="dataset directory (Parquet, images, README.md)")
 
-    solve = sub.add_parser("solve", help="search an environment's tasks for solving actions (its solvability report)")
-    solve.add_argument("--env", required=True, help="an environment with a solver (see `deepphy envs`)")
+    # --help is the solver's own once an environment is named: `solve --env phyre --help`
+    solve = sub.add_parser("solve", add_help=False,
+                           help="search an environment's tasks for solving actions (its solvability report)")
+    solve.add_argument("-h", "--help", action="store_true",
+                       help="this help; with --env, the help of that environment's solver (its commands and options)")
+    solve.add_argument("--env", help="an environment with a solver (see `deepphy envs`)")
     solve.add_argument("solver_args", nargs=argparse.REMAINDER,
-                       help="the solver's own arguments; default `report`, the solvability report "
-                            "(see `deepphy solve --env ENV --help`)")
+                       help="the solver's own arguments; default `report`, the solvability report")
+    solve.set_defaults(usage=solve)
 
     show = sub.add_parser("show", help="write the images a model would see for one task")
     show.add_argument("--env", required=True)
@@ -154,7 +163,7 @@ def run_summary(outcome) -> tuple[list[str], int]:
 
 def cmd_report(args: argparse.Namespace) -> int:
     from deepphy.metrics.report import (
-        render_csv, render_json, render_latex, render_markdown, render_text, report_of,
+        mixed_task_sets, render_csv, render_json, render_latex, render_markdown, render_text, report_of,
     )
 
     reports = [report_of(run_dir) for run_dir in args.run_dirs]
@@ -163,6 +172,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         raise UserError(f"a report combines runs of one environment; got {', '.join(envs)}")
     render = (render_json if args.json else render_csv if args.csv else render_markdown if args.markdown
               else render_latex if args.latex else render_text)
+    note = mixed_task_sets(reports)
+    if note and render is not render_text:  # the text table says so itself
+        print(f"deepphy: warning: {note}", file=sys.stderr)
     print(render(reports))
     return 0
 
@@ -214,16 +226,44 @@ def cmd_show(args: argparse.Namespace) -> int:
 def cmd_solve(args: argparse.Namespace) -> int:
     from deepphy.envs import get_spec, specs
 
+    with_solver = ", ".join(n for n, s in specs().items() if s.solver) or "none"
+    if args.env is None:
+        if args.help:
+            args.usage.print_help()
+            print(f"\nenvironments with a solver: {with_solver}")
+            return 0
+        raise UserError(f"solve needs --env (environments with a solver: {with_solver})")
     solver = get_spec(args.env).load_solver()
     if solver is None:
-        with_solver = ", ".join(n for n, s in specs().items() if s.solver) or "none"
         raise UserError(f"{args.env} has no solver (environments with one: {with_solver})")
-    return solver(args.solver_args or ["report"])
+    try:
+        return solver(["--help"] if args.help else args.solver_args or ["report"])
+    except SystemExit as e:  # argparse in the solver: --help (0), or a usage error it has printed (2)
+        return e.code if isinstance(e.code, int) else 2
 
 
 def cmd_watch(args: argparse.Namespace) -> int:
     import json
+    import os
     import time
+
+    from deepphy.runs.status import read_status
+
+    only = None  # the run id followed, when a run directory is given
+    address = args.address
+    if args.run_dir:
+        from deepphy.runs.store import read_config
+
+        read_config(args.run_dir)  # not a run directory: a clear error
+        status = read_status(args.run_dir)
+        if status is None or not status.ray_address:
+            raise UserError(f"no deepphy run is writing {args.run_dir} now (`deepphy report {args.run_dir}` shows "
+                            "what it holds)")
+        only, address = status.run_id, address or status.ray_address
+        if status.ray_auth and "RAY_AUTH_MODE" not in os.environ:  # a local run's Ray wants its token
+            os.environ["RAY_AUTH_MODE"] = status.ray_auth
+    elif not address:
+        raise UserError("give a run directory being written, or --address of a Ray cluster")
 
     import ray
 
@@ -231,11 +271,12 @@ def cmd_watch(args: argparse.Namespace) -> int:
     from deepphy.metrics.live import format_progress
     from deepphy.runner import ensure_ray
 
-    ensure_ray(RuntimeOptions(address=args.address))
+    ensure_ray(RuntimeOptions(address=address))
     seen = False
     while True:
         live = [a for a in ray.util.list_named_actors(all_namespaces=True)
-                if a["name"].startswith("deepphy/") and a["name"].endswith("/metrics")]
+                if a["name"].startswith("deepphy/") and a["name"].endswith("/metrics")
+                and only in (None, a["name"].split("/")[1])]
         for actor in live:
             run_id = actor["name"].split("/")[1]
             try:
@@ -244,13 +285,25 @@ def cmd_watch(args: argparse.Namespace) -> int:
             except Exception:  # noqa: BLE001 - the run ended between listing and asking
                 continue
             seen = True
-            print(json.dumps({"run_id": run_id, **snap}) if args.json else f"[{run_id}] {format_progress(snap)}",
-                  flush=True)
-        if args.once:
+            print(json.dumps({"run_id": run_id, **snap}) if args.json
+                  else f"[{_shown_path(snap.get('run_dir'))} {run_id}] {format_progress(snap)}", flush=True)
+        if args.once or (only and not live and read_status(args.run_dir) is None):
             if not seen:
-                print("no deepphy run is live on this cluster", file=sys.stderr)
+                print(f"no deepphy run is live {'in ' + args.run_dir if only else 'on this cluster'}", file=sys.stderr)
+            elif only and not live:
+                print(f"the run writing {args.run_dir} has ended (`deepphy report {args.run_dir}`)", file=sys.stderr)
             return 0 if seen else 1
         time.sleep(args.interval)
+
+
+def _shown_path(path: str | None) -> str:
+    """A run directory as a person would type it: relative to here when it is below here."""
+    if not path:
+        return "?"
+    import os
+
+    rel = os.path.relpath(path)
+    return path if rel.startswith("..") else rel
 
 
 def cmd_dashboard(args: argparse.Namespace) -> int:
@@ -294,10 +347,14 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from deepphy.metrics.report import report_of
+    from deepphy.metrics.report import mixed_task_sets, report_of
     from deepphy.plots import plot_all
 
     reports = [report_of(run_dir) for run_dir in args.run_dirs]
+    for env in dict.fromkeys(r["env"] for r in reports):
+        note = mixed_task_sets([r for r in reports if r["env"] == env])
+        if note:
+            print(f"deepphy: warning: {note}", file=sys.stderr)
     written = plot_all(reports, args.out)
     if not written:
         raise UserError("none of the figures applies to these run directories")

@@ -19,6 +19,8 @@ from typing import Any, Sequence
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from deepphy.envs import specs
+from deepphy.envs.base import Planning
 from deepphy.runs.records import AttemptRecord, KeyFrame
 from deepphy.runs.store import RunDirError, read_config, read_records
 
@@ -232,6 +234,8 @@ def dataset_card(sources: list[tuple[str, Any, int]], rows: int, images: int) ->
         for name, c, n in sources
     )
     field_lines = "\n".join(f"| `{name}` | `{type_}` | {meaning} |" for name, type_, meaning in FIELDS)
+    by_planning = {p: ", ".join(s.title for s in specs().values() if s.planning is p) for p in Planning}
+    in_advance, on_the_fly = by_planning[Planning.IN_ADVANCE], by_planning[Planning.ON_THE_FLY]
     return f"""---
 configs:
 - config_name: default
@@ -245,8 +249,8 @@ interactive physics environments, exported by `deepphy export` from deepphy run
 directories. One row per decision: {rows} rows, {images} image files.
 
 An attempt is one try at a task from its initial state; before each attempt the model
-sees its earlier failed attempts. In-advance environments (PHYRE, I-PHYRE) take one
-decision per attempt; on-the-fly ones (Pooltool, Kinetix) several. `success`,
+sees its earlier failed attempts. In-advance environments ({in_advance}) take one
+decision per attempt; on-the-fly ones ({on_the_fly}) several. `success`,
 `outcome`, `stars` and the `attempt_*` columns describe the whole attempt and repeat on
 each of its decisions.
 

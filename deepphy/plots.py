@@ -2,21 +2,25 @@
 
 Each `draw_*` function draws on a matplotlib Axes and returns the data it drew, so a test
 can check the figure against the report it came from. Which figures apply is read from
-the reports themselves: attempts K > 1 -> cumulative bars; both prompt formats of one
-setting -> VLA-vs-WM scatter; a boolean `annotate` option with both values -> dumbbell;
-`success_within_steps` -> success by shot; `stars` -> star bars.
+the reports themselves, per environment: attempts K > 1 -> cumulative bars; several
+decisions per attempt -> success by decision (shot, action); task groups -> success per
+group (Kinetix's sizes, PHYRE's setups); a boolean `annotate` option with both values ->
+dumbbell; `stars` -> star bars; and across environments, both prompt formats of one
+setting -> VLA-vs-WM scatter.
 Matplotlib is used through `Figure` objects only (no pyplot, no global backend).
 """
 
 from __future__ import annotations
 
 import json
-from collections import defaultdict
+import math
+from collections import Counter, defaultdict
 from pathlib import Path
 from typing import Any, Sequence
 
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from deepphy.metrics.report import setting
 
@@ -25,8 +29,11 @@ Report = dict[str, Any]
 CHECKPOINTS = (1, 4, 7, 10)  # the attempts after which the cumulative bars show the gain
 ABLATION_OPTION = "annotate"  # the boolean environment option of the annotation ablation
 FORMATS = ("vla", "wm")
-COLORS = ["#2563eb", "#dc2626", "#16a34a", "#9333ea", "#ea580c", "#0891b2", "#ca8a04", "#db2777"]
-SEGMENT_COLORS = ["#1e3a8a", "#2563eb", "#60a5fa", "#bfdbfe"]
+# Okabe & Ito's colour-blind safe palette (settings, environments)
+COLORS = ["#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000"]
+SEGMENT_COLORS = ["#08306b", "#2171b5", "#6baed6", "#c6dbef"]  # attempt 1, then the gains (dark to light)
+MIN_SLOTS = 3  # a figure is at least this many bar slots wide: one setting's bar does not fill it
+DPI = 200
 
 
 def _mean(report: Report, section: str | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -38,13 +45,56 @@ def _options_key(report: Report, *drop: str) -> str:
     return json.dumps({k: v for k, v in sorted(report["env_options"].items()) if k not in drop})
 
 
+def labels(reports: Sequence[Report]) -> list[str]:
+    """Each report's setting, numbered where two reports share one."""
+    names = [setting(r) for r in reports]
+    repeated = {n for n, c in Counter(names).items() if c > 1}
+    seen: Counter = Counter()
+    out = []
+    for n in names:
+        seen[n] += 1
+        out.append(f"{n} ({seen[n]})" if n in repeated else n)
+    return out
+
+
+def _style(ax: Axes, grid_axis: str = "y") -> None:
+    """What every figure shares: no top/right frame, a light grid behind the data."""
+    ax.spines[["top", "right"]].set_visible(False)
+    ax.grid(axis=grid_axis, color="#e5e7eb", linewidth=0.8)
+    ax.set_axisbelow(True)
+    ax.tick_params(labelsize=9)
+
+
+def _percent_limits(top: float) -> float:
+    """The upper end of a percent axis holding `top` percent: 100 for high values, else a
+    round number above it (at least 10, so all-zero data still get a readable 0-10 axis)."""
+    if top > 75:
+        return 100.0
+    return float(max(10, 10 * math.ceil(top * 1.15 / 10)))
+
+
+def _clipped(values: Sequence[float], errs: Sequence[float], top: float | None = 1.0) -> list[list[float]]:
+    """Error bars (mean ± std) cut at 0 and at `top`: no bar reaches below 0 % or above 100 %."""
+    return [[min(e, v) for v, e in zip(values, errs)],
+            [e if top is None else min(e, top - v) for v, e in zip(values, errs)]]
+
+
+def _slot_limits(ax: Axes, n: int) -> None:
+    """x limits for n slots at 0..n-1, centred in at least MIN_SLOTS slots."""
+    pad = (max(n, MIN_SLOTS) - n) / 2
+    ax.set_xlim(-0.5 - pad, n - 0.5 + pad)
+
+
 # -- cumulative success (in-advance environments, K > 1) --------------------------------
 
 
 def draw_cumulative_bars(ax: Axes, reports: Sequence[Report], checkpoints: Sequence[int] = CHECKPOINTS) -> dict[str, Any]:
     """Stacked bars, one per setting: success within attempt c1, then the gain up to each
-    later checkpoint; average attempts (over solved tasks) as points on a second axis."""
-    drawn: dict[str, Any] = {"labels": [], "checkpoints": [], "success": [], "segments": [], "avg_attempts": []}
+    later checkpoint, with the std over runs of the last; the average attempts (over
+    solved tasks) written above each bar."""
+    drawn: dict[str, Any] = {"labels": labels(reports), "checkpoints": [], "success": [], "segments": [],
+                             "avg_attempts": []}
+    top = 0.0
     for i, r in enumerate(reports):
         m, s = _mean(r)
         cps = [c for c in checkpoints if c <= r["max_attempts"]]
@@ -53,24 +103,114 @@ def draw_cumulative_bars(ax: Axes, reports: Sequence[Report], checkpoints: Seque
         bottom = 0.0
         for j, (c, seg) in enumerate(zip(cps, segments)):
             ax.bar(i, 100 * seg, bottom=100 * bottom, width=0.6, color=SEGMENT_COLORS[j % len(SEGMENT_COLORS)],
-                   label=(f"attempt {c}" if j == 0 else f"gain by attempt {c}") if i == 0 else None)
+                   edgecolor="white", linewidth=0.5,
+                   label=(f"attempt {c}" if j == 0 else f"attempts {cps[j - 1] + 1}-{c}") if i == 0 else None)
             bottom += seg
-        ax.errorbar(i, 100 * success[-1], yerr=100 * (s["success_at"][cps[-1] - 1] or 0), color="black", capsize=3)
-        drawn["labels"].append(setting(r))
+        (low,), (high,) = _clipped([success[-1]], [s["success_at"][cps[-1] - 1] or 0])
+        ax.errorbar(i, 100 * success[-1], yerr=[[100 * low], [100 * high]], color="black", capsize=3, linewidth=1)
+        avg = m["avg_attempts"]
+        ax.annotate("-" if avg is None else f"{avg:.2f}", (i, 100 * (success[-1] + high)), xytext=(0, 4),
+                    textcoords="offset points", ha="center", fontsize=8)
+        top = max(top, 100 * (success[-1] + high))
         drawn["checkpoints"].append(cps)
         drawn["success"].append(success)
         drawn["segments"].append(segments)
-        drawn["avg_attempts"].append(m["avg_attempts"])
-    ax.set_xticks(range(len(reports)), drawn["labels"], rotation=20, ha="right")
+        drawn["avg_attempts"].append(avg)
+    _style(ax)
+    ax.set_xticks(range(len(reports)), drawn["labels"], rotation=20 if len(reports) > 3 else 0,
+                  ha="right" if len(reports) > 3 else "center")
+    _slot_limits(ax, len(reports))
+    ax.set_ylim(0, _percent_limits(top * 1.08))
     ax.set_ylabel("tasks solved (%)")
-    twin = ax.twinx()
-    xs = [i for i, a in enumerate(drawn["avg_attempts"]) if a is not None]
-    twin.plot(xs, [drawn["avg_attempts"][i] for i in xs], "D", color="#ea580c", label="average attempts (solved)")
-    twin.set_ylabel("average attempts")
-    twin.set_ylim(0, max(max(r["max_attempts"] for r in reports), 1) + 0.5)
-    handles, labels = ax.get_legend_handles_labels()
-    h2, l2 = twin.get_legend_handles_labels()
-    ax.legend(handles + h2, labels + l2, fontsize=8, loc="upper left", bbox_to_anchor=(1.12, 1.0))
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False,
+              title="solved within", title_fontsize=8)
+    ax.text(1.02, 0.02, "above a bar:\naverage attempts\nof solved tasks", transform=ax.transAxes, fontsize=7,
+            color="#4b5563", va="bottom")
+    return drawn
+
+
+# -- on the fly: success by decision (shot, action) --------------------------------------
+
+
+def draw_success_by_step(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
+    """Success within k decisions, k = 1..max, mean (line) ± std over runs (band); ticks at
+    the report's checkpoints (Pooltool's shots 1, 3, 6, ...), else at every decision."""
+    drawn: dict[str, Any] = {"series": []}
+    stepped = [r for r in reports if "success_by_step" in r["overall"]["mean"]]
+    names = labels(stepped)
+    checkpoints = next((list(map(int, r["overall"]["mean"]["success_within_steps"])) for r in stepped
+                        if "success_within_steps" in r["overall"]["mean"]), None)
+    n_steps = max([len(r["overall"]["mean"]["success_by_step"]) for r in stepped] + [1])
+    marked = checkpoints or list(range(1, n_steps + 1))  # the table's points: marked and labelled
+    top = 0.0
+    for i, r in enumerate(stepped):
+        m, s = _mean(r)
+        y = m["success_by_step"]
+        err = [e or 0 for e in s["success_by_step"]]
+        ks = list(range(1, len(y) + 1))
+        avg = m.get("avg_steps")
+        color = COLORS[i % len(COLORS)]
+        label = names[i] + (f" (avg {avg:.1f} {r['step_noun']}s when solved)" if avg is not None else "")
+        ax.fill_between(ks, [100 * max(0, a - e) for a, e in zip(y, err)], [100 * min(1, a + e) for a, e in zip(y, err)],
+                        color=color, alpha=0.15, linewidth=0)
+        ax.plot(ks, [100 * v for v in y], color=color, label=label, marker="o", markersize=4,
+                markevery=[k - 1 for k in marked if k <= len(y)])
+        top = max([top] + [100 * (a + e) for a, e in zip(y, err)])
+        drawn["series"].append({"label": names[i], "steps": ks, "success": y, "std": s["success_by_step"],
+                                "avg_steps": avg})
+    noun = stepped[0]["step_noun"] if stepped else "step"
+    drawn["ticks"] = marked
+    _style(ax, "y")
+    ax.set_xticks(marked)
+    ax.set_xticks(range(1, n_steps + 1), minor=True)  # every decision, unlabelled
+    ax.set_xlim(0.5, n_steps + 0.5)
+    ax.set_ylim(0, _percent_limits(top))
+    ax.set_xlabel(f"{noun}s (k)")
+    ax.set_ylabel(f"tasks solved within k {noun}s (%)")
+    ax.legend(fontsize=8, loc="upper left", frameon=False)
+    return drawn
+
+
+# -- per task group (Kinetix's sizes, PHYRE's setups) --------------------------------------
+
+
+def group_order(report: Report) -> list[str]:
+    """The report's groups in the order the environment lists its tasks (e.g. S, M, L)."""
+    return list(report.get("groups", {}))
+
+
+def draw_group_bars(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
+    """Per task group and overall: tasks solved within K attempts (Pass@K), a bar per
+    setting with the std over runs."""
+    grouped = [r for r in reports if r.get("groups")]
+    names = labels(grouped)
+    groups = list(dict.fromkeys(g for r in grouped for g in group_order(r))) + ["all"]
+    width = min(0.8 / max(1, len(grouped)), 0.3)
+    drawn: dict[str, Any] = {"groups": groups, "bars": []}
+    top = 0.0
+    for i, r in enumerate(grouped):
+        values, errs = [], []
+        for g in groups:
+            sec = r["overall"] if g == "all" else r["groups"].get(g)
+            values.append(None if sec is None else sec["mean"]["success_at"][-1])
+            errs.append(0.0 if sec is None else sec["std"]["success_at"][-1] or 0.0)
+        xs = [j + (i - (len(grouped) - 1) / 2) * width for j in range(len(groups))]
+        low, high = _clipped([v or 0 for v in values], errs)
+        ax.bar(xs, [100 * (v or 0) for v in values], width=width * 0.92, color=COLORS[i % len(COLORS)],
+               yerr=[[100 * e for e in low], [100 * e for e in high]], capsize=2, error_kw={"linewidth": 0.8},
+               label=names[i])
+        top = max([top] + [100 * ((v or 0) + e) for v, e in zip(values, high)])
+        drawn["bars"].append({"label": names[i], "success": values, "std": errs})
+    _style(ax)
+    ax.set_xticks(range(len(groups)), groups)
+    ax.axvline(len(groups) - 1.5, color="#9ca3af", linewidth=0.8, linestyle=":")  # the groups | all
+    _slot_limits(ax, len(groups))
+    ax.set_ylim(0, _percent_limits(top))
+    noun = grouped[0]["group_noun"] if grouped else "group"
+    k = max((r["max_attempts"] for r in grouped), default=1)
+    ax.set_xlabel(noun)
+    ax.set_ylabel("tasks solved (%)" if k == 1 else f"tasks solved within {k} attempts (%)")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return drawn
 
 
@@ -80,7 +220,7 @@ def draw_cumulative_bars(ax: Axes, reports: Sequence[Report], checkpoints: Seque
 def _setting_key(r: Report, *drop: str) -> tuple:
     """What must agree for two reports to be one comparison (everything but `drop`)."""
     facts = {"env": r["env"], "model": r["model"], "format": r["format"], "runs": r["runs"], "seed": r["seed"],
-             "k": r["max_attempts"], "tasks": r["overall"]["tasks"]}
+             "k": r["max_attempts"], "tasks": r["task_set"]}
     return tuple(v for k, v in facts.items() if k not in drop) + (_options_key(r, *drop),)
 
 
@@ -96,28 +236,30 @@ def vla_wm_pairs(reports: Sequence[Report]) -> list[tuple[Report, Report]]:
 def draw_vla_wm_scatter(ax: Axes, reports: Sequence[Report], k: int | None = None) -> dict[str, Any]:
     """WM against VLA success at Pass@k (default: each environment's K), with the diagonal."""
     drawn: dict[str, Any] = {"points": []}
-    envs = sorted({vla["env"] for vla, _ in vla_wm_pairs(reports)})
-    for vla, wm in vla_wm_pairs(reports):
+    pairs = vla_wm_pairs(reports)
+    envs = list(dict.fromkeys(vla["env"] for vla, _ in pairs))
+    titles = {vla["env"]: vla["title"] for vla, _ in pairs}
+    for vla, wm in pairs:
         kk = min(k or vla["max_attempts"], vla["max_attempts"], wm["max_attempts"])
         x, y = _mean(vla)[0]["success_at"][kk - 1], _mean(wm)[0]["success_at"][kk - 1]
         color = COLORS[envs.index(vla["env"]) % len(COLORS)]
         ax.scatter(100 * x, 100 * y, color=color, s=40, zorder=3)
         options = ",".join(f"{a}={b}" for a, b in sorted(vla["env_options"].items()))
-        name = f"{vla['env']} {vla['model']}" + (f" {options}" if options else "")
-        ax.annotate(name, (100 * x, 100 * y), fontsize=7, xytext=(4, 4), textcoords="offset points")
+        ax.annotate(vla["model"] + (f" {options}" if options else ""), (100 * x, 100 * y), fontsize=7,
+                    xytext=(4, 4), textcoords="offset points")
         drawn["points"].append({"env": vla["env"], "model": vla["model"], "env_options": vla["env_options"],
                                 "k": kk, "vla": x, "wm": y})
-    top = max([100.0 * max(p["vla"], p["wm"]) for p in drawn["points"]] + [10.0])
-    top = min(100.0, 10 * (int(top // 10) + 1))
-    ax.plot([0, top], [0, top], "--", color="#9ca3af", zorder=1)
+    top = _percent_limits(max([100.0 * max(p["vla"], p["wm"]) for p in drawn["points"]] + [0.0]))
+    ax.plot([0, top], [0, top], "--", color="#9ca3af", linewidth=1, zorder=1)
+    _style(ax, "both")
     ax.set_xlim(0, top)
     ax.set_ylim(0, top)
     ax.set_aspect("equal")
-    ax.set_xlabel("VLA: tasks solved within K attempts (%)")
-    ax.set_ylabel("WM: tasks solved within K attempts (%)")
+    ax.set_xlabel("VLA: tasks solved at Pass@K (%)")
+    ax.set_ylabel("WM: tasks solved at Pass@K (%)")
     for i, env in enumerate(envs):
-        ax.scatter([], [], color=COLORS[i % len(COLORS)], label=env)
-    ax.legend(fontsize=8, loc="upper left")
+        ax.scatter([], [], color=COLORS[i % len(COLORS)], label=titles[env])
+    ax.legend(fontsize=8, loc="upper left", frameon=False)
     return drawn
 
 
@@ -142,24 +284,12 @@ def ablation_pairs(reports: Sequence[Report], option: str = ABLATION_OPTION) -> 
     return [pair for v in by_key.values() for pair in zip(v[True], v[False])]
 
 
-def group_order(report: Report) -> list[str]:
-    """The report's groups in the order the environment lists its tasks (e.g. S, M, L)."""
-    from deepphy.envs import get_env_class
-
-    groups = list(report.get("groups", {}))
-    if not groups:
-        return []
-    cls = get_env_class(report["env"])
-    seen = list(dict.fromkeys(t.group for t in cls.tasks(cls.Options(**report["env_options"]))))
-    return sorted(groups, key=lambda g: seen.index(g) if g in seen else len(seen))
-
-
 def draw_ablation_dumbbell(ax: Axes, reports: Sequence[Report], option: str = ABLATION_OPTION) -> dict[str, Any]:
-    """Per setting and task group (size): success with and without the option, joined by a line."""
+    """Per setting and task group (size), then overall: success with and without the
+    option, joined by a line."""
     drawn: dict[str, Any] = {"rows": []}
     for with_, without in ablation_pairs(reports, option):
-        groups = group_order(with_) or [None]
-        for g in groups:
+        for g in group_order(with_) + [None]:
             a = _mean(with_, g)[0]["success_at"][-1]
             b = _mean(without, g)[0]["success_at"][-1]
             drawn["rows"].append({"label": f"{with_['model']} {with_['format'].upper()} · {g or 'all'}",
@@ -167,39 +297,19 @@ def draw_ablation_dumbbell(ax: Axes, reports: Sequence[Report], option: str = AB
     for y, row in enumerate(drawn["rows"]):
         ax.plot([100 * row["without"], 100 * row["with"]], [y, y], color="#9ca3af", zorder=1)
         # a ring and a dot: both stay visible when the two values are equal
-        ax.scatter(100 * row["with"], y, s=110, facecolors="none", edgecolors="#2563eb", linewidths=2, zorder=2,
+        ax.scatter(100 * row["with"], y, s=110, facecolors="none", edgecolors=COLORS[0], linewidths=2, zorder=2,
                    label=f"{option}=true" if y == 0 else None)
-        ax.scatter(100 * row["without"], y, s=30, color="#dc2626", zorder=3, label=f"{option}=false" if y == 0 else None)
+        ax.scatter(100 * row["without"], y, s=30, color=COLORS[5], zorder=3,
+                   label=f"{option}=false" if y == 0 else None)
+    _style(ax, "x")
     ax.set_yticks(range(len(drawn["rows"])), [r["label"] for r in drawn["rows"]])
     ax.invert_yaxis()
     ax.margins(y=0.15)
-    ax.set_xlabel("tasks solved (%)")
-    ax.set_xlim(-2, 102)
-    ax.legend(fontsize=8)
-    return drawn
-
-
-# -- on-the-fly: success by shot --------------------------------------------------------
-
-
-def draw_success_by_shot(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
-    """Success within k decisions (the report's checkpoints), mean ± std over runs."""
-    drawn: dict[str, Any] = {"series": []}
-    shots = [r for r in reports if "success_within_steps" in r["overall"]["mean"]]
-    for i, r in enumerate(shots):
-        m, s = _mean(r)
-        ks = list(m["success_within_steps"])
-        y = [m["success_within_steps"][k] for k in ks]
-        err = [s["success_within_steps"][k] or 0 for k in ks]
-        avg = m.get("avg_steps")
-        label = setting(r) + (f" (avg {avg:.1f} when solved)" if avg is not None else "")
-        ax.errorbar([int(k) for k in ks], [100 * v for v in y], yerr=[100 * e for e in err], marker="o",
-                    capsize=3, color=COLORS[i % len(COLORS)], label=label)
-        drawn["series"].append({"label": setting(r), "shots": [int(k) for k in ks], "success": y, "avg_steps": avg})
-    ax.set_xlabel("shots")
-    ax.set_ylabel("games won within k shots (%)")
-    ax.set_ylim(bottom=0)
-    ax.legend(fontsize=8)
+    top = _percent_limits(max([100 * max(r["with"], r["without"]) for r in drawn["rows"]] + [0.0]))
+    ax.set_xlim(-0.02 * top, top * 1.02)
+    k = max((r["max_attempts"] for r in reports), default=1)
+    ax.set_xlabel("tasks solved (%)" if k == 1 else f"tasks solved within {k} attempts (%)")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return drawn
 
 
@@ -207,22 +317,35 @@ def draw_success_by_shot(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
 
 
 def draw_star_bars(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
-    """Per setting: levels finished with 1, 2 and 3 stars (mean over runs), side by side."""
-    drawn: dict[str, Any] = {"labels": [], "levels_with": [], "mean_all": [], "mean_completed": []}
+    """Per setting: levels won with 0 (where any were), 1, 2 and 3 stars, mean ± std over
+    runs, side by side."""
     starred = [r for r in reports if "stars" in r["overall"]["mean"]]
-    width = 0.8 / max(1, len(starred))
+    names = labels(starred)
+    zero = any(x["stars"]["levels_with"].get("0") for r in starred for x in r["overall"]["per_run"])
+    counts = (["0"] if zero else []) + ["1", "2", "3"]
+    drawn: dict[str, Any] = {"stars": counts, "labels": names, "levels_with": [], "std": [], "mean_all": [],
+                             "mean_completed": []}
+    width = min(0.8 / max(1, len(starred)), 0.3)
     for i, r in enumerate(starred):
-        st = _mean(r)[0]["stars"]
-        counts = [st["levels_with"][c] for c in ("1", "2", "3")]
-        ax.bar([j + i * width for j in range(3)], counts, width=width, color=COLORS[i % len(COLORS)],
-               label=f"{setting(r)} (mean {st['mean_all']:.2f} ★/level)")
-        drawn["labels"].append(setting(r))
-        drawn["levels_with"].append(counts)
+        st, sd = r["overall"]["mean"]["stars"], r["overall"]["std"]["stars"]
+        values = [st["levels_with"][c] for c in counts]
+        errs = [sd["levels_with"][c] or 0 for c in counts]
+        xs = [j + (i - (len(starred) - 1) / 2) * width for j in range(len(counts))]
+        ax.bar(xs, values, width=width * 0.92, color=COLORS[i % len(COLORS)],
+               yerr=_clipped(values, errs, top=None), capsize=2, error_kw={"linewidth": 0.8},
+               label=f"{names[i]} ({st['mean_all']:.2f} stars per level)")
+        drawn["levels_with"].append(values)
+        drawn["std"].append(errs)
         drawn["mean_all"].append(st["mean_all"])
         drawn["mean_completed"].append(st["mean_completed"])
-    ax.set_xticks([j + 0.4 - width / 2 for j in range(3)], ["1 star", "2 stars", "3 stars"])
-    ax.set_ylabel("levels (mean over runs)")
-    ax.legend(fontsize=8)
+    _style(ax)
+    ax.set_xticks(range(len(counts)), [f"{c} star{'' if c == '1' else 's'}" for c in counts])
+    _slot_limits(ax, len(counts))
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_ylim(0, max([1.0] + [1.1 * (v + e) for vs, es in zip(drawn["levels_with"], drawn["std"])
+                                for v, e in zip(vs, es)]))
+    ax.set_ylabel("levels won (mean over runs)")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return drawn
 
 
@@ -236,21 +359,37 @@ def figures_for(reports: Sequence[Report]) -> list[tuple[str, str, Any, list[Rep
     for r in reports:
         by_env[r["env"]].append(r)
     for env, rs in by_env.items():
+        title = rs[0]["title"]
         multi = [r for r in rs if r["max_attempts"] > 1]
         if multi:
-            out.append((f"cumulative_{env}", f"{env}: cumulative success by attempt", draw_cumulative_bars, multi))
+            out.append((f"cumulative_{env}", f"{title}: tasks solved by attempt", draw_cumulative_bars, multi))
+        stepped = [r for r in rs if "success_by_step" in r["overall"]["mean"]]
+        if stepped:
+            noun = stepped[0]["step_noun"]
+            out.append((f"by_{noun}_{env}", f"{title}: tasks solved by {noun}", draw_success_by_step, stepped))
+        grouped = [r for r in rs if r.get("groups")]
+        if grouped:
+            noun = grouped[0]["group_noun"]
+            out.append((f"by_{noun}_{env}", f"{title}: tasks solved by {noun}", draw_group_bars, grouped))
         if ablation_pairs(rs):
-            out.append((f"{ABLATION_OPTION}_{env}", f"{env}: with and without {ABLATION_OPTION}",
+            out.append((f"{ABLATION_OPTION}_{env}", f"{title}: with and without annotations",
                         draw_ablation_dumbbell, rs))
-        shots = [r for r in rs if "success_within_steps" in r["overall"]["mean"]]
-        if shots:
-            out.append((f"by_shot_{env}", f"{env}: success by shot", draw_success_by_shot, shots))
         stars = [r for r in rs if "stars" in r["overall"]["mean"]]
         if stars:
-            out.append((f"stars_{env}", f"{env}: stars", draw_star_bars, stars))
+            out.append((f"stars_{env}", f"{title}: levels won by stars", draw_star_bars, stars))
     if vla_wm_pairs(reports):
         out.append(("vla_vs_wm", "VLA vs WM (Pass@K)", draw_vla_wm_scatter, list(reports)))
     return out
+
+
+def _size(draw, reports: Sequence[Report]) -> tuple[float, float]:
+    """Figure size in inches: the scatter is square, the dumbbell grows with its rows."""
+    if draw is draw_vla_wm_scatter:
+        return 5.0, 5.0
+    if draw is draw_ablation_dumbbell:
+        rows = sum(len(group_order(with_)) + 1 for with_, _ in ablation_pairs(reports))
+        return 7.0, 1.6 + 0.32 * rows
+    return 7.0, 3.6
 
 
 def plot_all(reports: Sequence[Report], out: str | Path) -> list[Path]:
@@ -263,13 +402,13 @@ def plot_all(reports: Sequence[Report], out: str | Path) -> list[Path]:
     written: list[Path] = []
     data: dict[str, Any] = {}
     for stem, title, draw, rs in figures:
-        fig = Figure(figsize=(7.5, 4.5) if draw is not draw_vla_wm_scatter else (5.5, 5.5), layout="constrained")
+        fig = Figure(figsize=_size(draw, rs), layout="constrained")
         ax = fig.add_subplot()
         data[stem] = draw(ax, rs)
-        ax.set_title(title)
+        ax.set_title(title, fontsize=11)
         for suffix in ("png", "pdf"):
             path = out / f"{stem}.{suffix}"
-            fig.savefig(path, dpi=150)
+            fig.savefig(path, dpi=DPI)
             written.append(path)
     (out / "figures.json").write_text(json.dumps(data, indent=1))
     return [*written, out / "figures.json"]

@@ -20,6 +20,7 @@ from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.metrics import figures as F
 from deepphy.metrics.live import format_progress
+from deepphy.runs.status import RunStatus, remove_status, write_status
 from deepphy.runs.store import CONFIG, RunDirError, RunStore, read_records
 
 RAY_TIMEOUT_S = 60.0
@@ -229,6 +230,13 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
         # Named "deepphy/<run id>/<role>": a dashboard or an operator can find a live run's
         # metrics actor (ray.util.list_named_actors) and poll its snapshot.
         prefix = f"deepphy/{uuid.uuid4().hex[:8]}"
+        status = RunStatus(run_id=prefix.split("/")[1], pid=os.getpid(), phase="starting", since=time.time(),
+                           ray_address=ray.get_runtime_context().gcs_address,
+                           ray_auth=os.environ.get("RAY_AUTH_MODE"))
+        write_status(store.path, status)
+        if runtime.progress:  # where `deepphy watch` and `deepphy dashboard --address` find this run
+            print(f"deepphy: run {status.run_id} on Ray at {status.ray_address}; follow it with "
+                  f"`deepphy watch {out}`", file=stream, flush=True)
         env_workers = [
             make_env_worker(spec, config.env_options, name=f"{prefix}/env{i}", resource=runtime.env_resource,
                             log_path=store.log_path(f"env{i}"), max_concurrency=max(1000, runtime.max_in_flight))
@@ -246,12 +254,12 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             shares_files = seen == probe.read_bytes()
             model, model_actors = WorkerModel(worker, shares_files), [worker]
         total = len(tasks) * config.runs
-        metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics", run={
+        metrics = make_metrics_actor(total, k_max, spec.max_steps, name=f"{prefix}/metrics", run={
             "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})
         actors = [*env_workers, *model_actors, metrics, *([limiter] if limiter is not None else [])]
         ray.get(metrics.add.remote([r.summary() for r in existing], resumed=True), timeout=RAY_TIMEOUT_S)
         scheduler = Scheduler(config, runtime, spec, tasks, store, env_workers, model, metrics, k_max)
-        asyncio.run(_drive(scheduler, existing, env_workers, metrics, runtime, stream))
+        asyncio.run(_drive(scheduler, existing, env_workers, metrics, runtime, stream, store.path, status))
         # The run directory, not a live actor, says what is done.
         records = read_records(out)
         done = sum(1 for e in F.episodes(records, k_max) if e.finished and e.run < config.runs
@@ -266,6 +274,7 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             worker_stats=_worker_stats(env_workers),
         )
     finally:
+        remove_status(store.path)
         store.close()
         # A model worker closes its connections itself, or its client complains as it dies.
         try:
@@ -318,14 +327,26 @@ def _check_unique(records: Sequence[Any], out: str | Path) -> None:
         seen.add(r.key)
 
 
-async def _drive(scheduler, existing, env_workers, metrics, runtime: RuntimeOptions, stream) -> None:
-    """Warm the workers up, then run the scheduler, with the progress view alongside."""
-    phase = ["preparing workers (compiling kernels on first use)"]
+async def _drive(scheduler, existing, env_workers, metrics, runtime: RuntimeOptions, stream, run_dir: Path,
+                 status: RunStatus) -> None:
+    """Start the workers, warm them up (compiling kernels on first use), then run the
+    scheduler, with the progress view alongside. Each phase is told to the metrics actor
+    (attempts/s and ETA count from "running") and written to the run directory."""
+    phase = [status.phase]
+
+    def enter(name: str) -> None:
+        phase[0] = name
+        metrics.update.remote({"phase": name})
+        write_status(run_dir, status.model_copy(update={"phase": name, "since": time.time()}))
+
     view = asyncio.ensure_future(_progress(scheduler, metrics, phase, stream)) if runtime.progress else None
     try:
+        await asyncio.wait_for(asyncio.gather(*(w.stats.remote() for w in env_workers)),
+                               timeout=runtime.step_timeout_s)  # the workers' processes are up
+        enter("compiling")
         await asyncio.wait_for(asyncio.gather(*(w.warm_up.remote(scheduler.tasks) for w in env_workers)),
                                timeout=runtime.step_timeout_s)
-        phase[0] = "running"
+        enter("running")
         await scheduler.run(existing)
     finally:
         if view is not None:

@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -110,7 +111,31 @@ def test_kill_9_then_resume_equals_uninterrupted(ray_cluster, tmp_path):
     assert json.loads(reports[0])["overall"] == json.loads(reports[1])["overall"]
 
 
-def test_solve_reports_phyre_solvability(tmp_path, capsys):
+def test_version(capsys):
+    from deepphy import __version__
+
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0 and capsys.readouterr().out == f"deepphy {__version__}\n"
+    assert re.fullmatch(r"\d+\.\d+\.\d+.*", __version__)
+
+
+@pytest.mark.parametrize("env", ["phyre", "angrybirds", "cuttherope"])
+def test_solve_help_is_the_solvers(env, capsys):
+    assert main(["solve", "--env", env, "--help"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"usage: deepphy solve --env {env}")
+    # every command of the solver, with its options
+    assert f"deepphy solve --env {env} report [" in out and "--json FILE" in out
+    assert main(["solve", "--help"]) == 0
+    assert "environments with a solver: angrybirds, cuttherope, phyre" in capsys.readouterr().out
+
+
+def test_solve_reports_phyre_solvability(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["solve", "--env", "phyre", "report", "--limit", "1", "--jobs", "1"]) == 0
+    assert "solvable on the grid" in capsys.readouterr().out
+    assert list(tmp_path.iterdir()) == []  # nothing written where it was run from
     out = tmp_path / "solvability.json"
     assert main(["solve", "--env", "phyre", "report", "--limit", "2", "--jobs", "1", "--out", str(out)]) == 0
     report = json.loads(out.read_text())
@@ -121,3 +146,67 @@ def test_solve_reports_phyre_solvability(tmp_path, capsys):
         assert row["solving_grid_actions"] == row["statuses"].count(1) == len(row["solving"])
     assert summary["solvable_on_grid"] == sum(r["solving_grid_actions"] > 0 for r in report["tasks"])
     assert "solvable on the grid" in capsys.readouterr().out
+
+
+def test_watch_follows_a_local_run_by_its_directory(ray_cluster, tmp_path):
+    """The run says where its Ray is and writes its status; `deepphy watch RUN_DIR` joins
+    that Ray (the token mode taken from the status file) and shows the run by its
+    directory; once the run has ended, the directory has no live run to watch."""
+    from deepphy.runs.status import PHASES
+
+    out = tmp_path / "run"
+    run = _run(["run", "--limit", "40", "--runs", "3", "--address", ray_cluster, "--out", str(out),
+                "--max-in-flight", "1", "--env-workers", "1"])
+    try:
+        deadline = time.time() + 120
+        while time.time() < deadline and not ((out / "status.json").exists() and (out / ATTEMPTS).exists()
+                                               and (out / ATTEMPTS).stat().st_size):
+            assert run.poll() is None, run.stderr.read().decode()
+            time.sleep(0.1)
+        status = json.loads((out / "status.json").read_text())
+        assert status["ray_address"] == ray_cluster and status["phase"] in PHASES and status["pid"] == run.pid
+        env = {k: v for k, v in os.environ.items() if k != "RAY_AUTH_MODE"}
+        watch = subprocess.run([sys.executable, "-m", "deepphy.cli", "watch", str(out), "--once"], env=env,
+                               capture_output=True, text=True, timeout=120)
+        assert watch.returncode == 0, watch.stderr
+        (line,) = watch.stdout.splitlines()
+        assert line.startswith(f"[{out} {status['run_id']}] ") and "episodes " in line
+    finally:
+        run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=120)
+    assert f"run {status['run_id']} on Ray at {ray_cluster}; follow it with `deepphy watch {out}`" in err.decode()
+    assert not (out / "status.json").exists()
+    assert main(["watch", str(out), "--once"]) == 2
+
+
+def test_kinetix_drops_only_grains_profiling_warning():
+    import logging
+
+    import deepphy.envs.kinetix.sim  # noqa: F401 - installs the filter
+
+    def passes(message):
+        return logging.getLogger("absl").filter(logging.LogRecord("absl", logging.WARNING, "x", 1, message, (), None))
+
+    assert not passes("Grain multiprocess worker profiling requires jaxlib extension version 448 or later")
+    assert passes("something else absl says")
+
+
+@pytest.mark.slow
+def test_show_kinetix_prints_no_library_warnings(tmp_path):
+    done = subprocess.run([sys.executable, "-m", "deepphy.cli", "show", "--env", "kinetix", "--task",
+                           "s_h0_weak_thrust", "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    assert len(done.stdout.splitlines()) == 3  # two images and the text state
+
+
+def test_report_and_plot_flag_runs_of_different_task_sets(tmp_path, capsys):
+    from dashboard_support import synthetic_run
+
+    a = synthetic_run(tmp_path / "a", env="iphyre", limit=3, runs=1)
+    b = synthetic_run(tmp_path / "b", env="iphyre", limit=2, runs=1, fmt="wm")
+    assert main(["report", str(a), str(b)]) == 0
+    out, err = capsys.readouterr()
+    assert "note: these runs evaluate different task sets (mock VLA: n=3, mock WM: n=2)" in out and not err
+    for argv in (["report", "--csv", str(a), str(b)], ["plot", str(a), str(b), "--out", str(tmp_path / "figs")]):
+        assert main(argv) == 0
+        assert capsys.readouterr().err.startswith("deepphy: warning: these runs evaluate different task sets")

@@ -14,7 +14,8 @@ from dashboard_support import append, copy_run, mock_run, synthetic_run
 from deepphy.cli import main
 from deepphy.dashboard.server import Dashboard, make_app
 from deepphy.dashboard.source import RunSource, writer_holds_lock
-from deepphy.metrics.report import report_of, table
+from deepphy.metrics.report import report_of, table, table_key
+from deepphy.runs.status import RunStatus, read_status, write_status
 from deepphy.runs.store import ATTEMPTS, RunStore, read_config, read_records
 
 
@@ -54,7 +55,8 @@ def test_view_numbers_are_the_report(run_dir):
     view = source.view()
     assert view["report"] == report
     header, rows = table([report])
-    assert view["table"] == {"header": header, "rows": rows}
+    assert view["table"] == {"header": header, "rows": rows, "key": table_key([report])}
+    assert view["title"] == "I-PHYRE"
     per_run = report["overall"]["per_run"]
     for key in ("solved", "attempts", "invalid_attempts", "model_errors", "retries", "input_tokens", "cost_usd"):
         assert view["totals"][key] == sum(r[key] for r in per_run)
@@ -70,11 +72,14 @@ def test_single_attempt_runs_get_a_per_decision_curve(tmp_path):
     report = kin.report()
     curve = kin.view()["curve"]
     assert curve["kind"] == "decisions" and curve["x"] == list(range(1, kin.max_steps + 1))
-    assert curve["mean"] == sorted(curve["mean"])  # cumulative
+    assert curve["mean"] == report["overall"]["mean"]["success_by_step"] == sorted(curve["mean"])  # cumulative
     assert curve["mean"][-1] == pytest.approx(report["overall"]["mean"]["success_at"][0])
+    # every shot on a regular axis; the report's checkpoints are points of the curve
     pool = loaded(synthetic_run(tmp_path / "pool", env="pooltool", limit=6, max_steps=15, p_success=0.6))
-    m = pool.report()["overall"]["mean"]["success_within_steps"]
-    assert pool.view()["curve"]["x"] == [int(k) for k in m] and pool.view()["curve"]["mean"] == list(m.values())
+    m = pool.report()["overall"]["mean"]
+    curve = pool.view()["curve"]
+    assert curve["x"] == list(range(1, 16)) and curve["noun"] == "shot" and curve["checkpoints"] == [1, 3, 6, 9, 12, 15]
+    assert [curve["mean"][k - 1] for k in curve["checkpoints"]] == list(m["success_within_steps"].values())
 
 
 def test_grid_pages_groups_and_cells(run_dir, tmp_path):
@@ -139,10 +144,15 @@ def test_a_writing_run_is_detected_without_taking_its_lock(run_dir, tmp_path):
     try:
         assert writer_holds_lock(copy) is True
         assert loaded(copy).view()["progress"]["status"] == "running"
+        assert loaded(copy).view()["progress"]["phase"] is None  # no status file: no phase to tell
+        write_status(copy, RunStatus(run_id="ab12cd34", pid=1, phase="compiling", since=time.time()))
+        assert loaded(copy).view()["progress"]["phase"] == "compiling"
     finally:
         store.close()
     assert writer_holds_lock(copy) is False
+    assert read_status(copy) is None  # a status file without its writer is stale
     assert loaded(copy).view()["progress"]["status"] == "incomplete"
+    assert loaded(copy).view()["progress"]["phase"] is None
 
 
 def test_a_replaced_log_is_read_again(run_dir, tmp_path):
@@ -252,6 +262,21 @@ def test_runs_that_appear_later_join(run_dir, tmp_path):
     asyncio.run(scenario())
 
 
+def test_runs_nested_below_a_directory_are_found(run_dir, tmp_path):
+    """runs/<model>/<env>/ and the like: run directories two folders down are found; a run
+    directory's own folders and hidden folders are not searched."""
+    from deepphy.dashboard.source import runs_in
+
+    copy_run(run_dir, tmp_path / "runs" / "gpt" / "iphyre", lines=3)
+    copy_run(run_dir, tmp_path / "runs" / "mock" / "phyre-like", lines=3)
+    copy_run(run_dir, tmp_path / "runs" / "direct", lines=3)
+    copy_run(run_dir, tmp_path / "runs" / ".hidden" / "x", lines=3)
+    copy_run(run_dir, tmp_path / "runs" / "direct" / "frames" / "inner", lines=3)  # inside a run: not searched
+    root = tmp_path / "runs"
+    assert runs_in(root) == [root / "direct", root / "gpt" / "iphyre", root / "mock" / "phyre-like"]
+    assert runs_in(tmp_path, depth=1) == []
+
+
 def test_cli_port_in_use(run_dir, capsys):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -268,7 +293,7 @@ def test_live_runs_from_metrics_snapshots(run_dir):
     config = read_config(run_dir).model_dump(mode="json")
     snap = {"episodes_done": 3, "episodes_total": 12, "attempts": 9, "attempts_per_s": 2.5, "solved": 2,
             "invalid_attempts": 1, "model_errors": 0, "retries": 4, "input_tokens": 10, "output_tokens": 2,
-            "cost_usd": 0.5, "elapsed_s": 6.0, "config": config}
+            "cost_usd": 0.5, "elapsed_s": 6.0, "eta_s": 20.0, "phase": "running", "config": config}
 
     async def scenario():
         dashboard = Dashboard([])
@@ -281,7 +306,7 @@ def test_live_runs_from_metrics_snapshots(run_dir):
         assert source.snapshot["attempts"] == 9
         view = dashboard.views["ray-bb22"]
         assert view["live_only"] and view["progress"]["status"] == "running"
-        assert view["progress"]["eta_s"] == pytest.approx((12 - 3) / (3 / 6.0))
+        assert view["progress"]["eta_s"] == 20.0 and view["progress"]["phase"] == "running"  # the run's own
         assert view["totals"]["retries"] == 4 and view["label"] == "mock VLA" and view["env"] == "iphyre"
         await dashboard._merge_live({})
         assert dashboard.views["ray-bb22"]["progress"]["status"] == "ended" and source.snapshot is None

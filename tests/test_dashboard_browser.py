@@ -17,12 +17,13 @@ from pathlib import Path
 
 import pytest
 
-from dashboard_support import IPHYRE_TASKS, append, copy_run, mock_run
+from dashboard_support import IPHYRE_TASKS, append, copy_run, mock_run, synthetic_run
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.dashboard.source import run_id
 from deepphy.metrics.report import report_of, table
 from deepphy.runner import evaluate
-from deepphy.runs.store import read_records
+from deepphy.runs.status import RunStatus, write_status
+from deepphy.runs.store import ATTEMPTS, RunStore, read_config, read_records
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -260,3 +261,71 @@ def test_a_live_evaluation_found_on_the_cluster(ray_cluster, serve, open_page, s
         assert_page_shows(page, out)
     finally:
         thread.join(600)
+
+
+def _with_a_zero_star_win(run_dir):
+    """The run with its first won level re-scored 0 stars (Cut the Rope allows it)."""
+    lines = (run_dir / ATTEMPTS).read_bytes().splitlines()
+    first = next(i for i, line in enumerate(lines) if json.loads(line)["success"])
+    record = json.loads(lines[first])
+    lines[first] = json.dumps({**record, "stars": 0}).encode()
+    (run_dir / ATTEMPTS).write_bytes(b"".join(line + b"\n" for line in lines))
+    return run_dir
+
+
+def test_charts_per_environment_stars_colours_and_phase(serve, open_page, screenshots, tmp_path):
+    """One success chart per environment on its own regular x axis; the stars chart counts
+    a level won with 0 stars and its label clears the ticks; run colours are not status
+    colours; a compiling run says so; episode images load without scrolling to them."""
+    pool = synthetic_run(tmp_path / "pool", env="pooltool", limit=6, max_steps=15, p_success=0.6)
+    kin = synthetic_run(tmp_path / "kin", limit=6, max_steps=8)
+    ctr = _with_a_zero_star_win(synthetic_run(tmp_path / "ctr", env="cuttherope", limit=8, stars=True,
+                                              max_steps=6, p_success=0.6))
+    compiling = tmp_path / "compiling"
+    copy_run(kin, compiling, lines=0)
+    store = RunStore.create_or_resume(compiling, read_config(compiling))
+    try:
+        write_status(compiling, RunStatus(run_id="c0ffee00", pid=os.getpid(), phase="compiling", since=time.time()))
+        server = serve(str(pool), str(kin), str(ctr), str(compiling))
+        page = open_page(server.url)
+        page.wait_for_function("document.querySelectorAll('.card').length === 4")
+        page.wait_for_selector('.chart[data-env="cuttherope"][data-kind="stars"] rect')
+        badge = f'.card[data-run="{run_id_of(page, compiling)}"] [data-field=status]'
+        page.wait_for_function(f"document.querySelector('{badge}').textContent === 'compiling'")
+
+        kinds = page.eval_on_selector_all(".chart", "cs => cs.map(c => [c.dataset.env, c.dataset.kind, c.querySelector('h3').textContent])")
+        assert ["pooltool", "decisions-pooltool", "Pooltool: success rate within k shots"] in kinds
+        assert ["kinetix", "decisions-kinetix", "Kinetix: success rate within k decisions"] in kinds
+        assert ["cuttherope", "stars", "Cut the Rope: levels won with 0, 1, 2, 3 stars (light to dark)"] in kinds
+        ticks = page.eval_on_selector_all('.chart[data-env="pooltool"] svg text[text-anchor=middle]',
+                                          "ts => ts.map(t => t.textContent)")
+        assert ticks[:15] == [str(k) for k in range(1, 16)]  # every shot, evenly spaced
+
+        zero = page.eval_on_selector_all('.chart[data-kind="stars"] rect[data-stars="0"]', "rs => rs.map(r => Number(r.dataset.value))")
+        assert zero == [report_of(ctr)["overall"]["mean"]["stars"]["levels_with"]["0"]] and zero[0] > 0
+        overlaps = page.evaluate("""() => {
+            const svg = document.querySelector('.chart[data-kind="stars"] svg');
+            const label = [...svg.querySelectorAll('text')].find(t => t.textContent === 'levels won').getBBox();
+            return [...svg.querySelectorAll('text[text-anchor=end]')].filter(t => { const b = t.getBBox();
+                return b.x < label.x + label.width && label.x < b.x + b.width && b.y < label.y + label.height && label.y < b.y + b.height; }).length;
+        }""")
+        assert overlaps == 0
+
+        status_colours = page.evaluate("""() => ['--solved', '--failed', '--progress'].map(v =>
+            getComputedStyle(document.documentElement).getPropertyValue(v).trim().toLowerCase())""")
+        run_colours = page.eval_on_selector_all(".card", "cs => cs.map(c => c.style.getPropertyValue('--run-color').toLowerCase())")
+        assert len(set(run_colours)) == 4 and not set(run_colours) & set(status_colours)
+        page.screenshot(path=str(screenshots / "dashboard_charts.png"), full_page=True)
+
+        # an episode with several decisions: every key frame loads (none lazily), even below the fold
+        page.select_option("#run-select", run_id_of(page, kin))
+        page.wait_for_selector('#grid .cell[data-state="failed"]')
+        page.click('#grid .cell[data-state="failed"]')
+        page.wait_for_selector("#episode .attempt")
+        page.eval_on_selector_all("#episode details", "ds => ds.forEach(d => { d.open = true; })")
+        assert page.eval_on_selector_all("#episode img[loading=lazy]", "is => is.length") == 0
+        page.wait_for_function("() => { const is = [...document.querySelectorAll('#episode img')];"
+                               " return is.length > 2 && is.every(i => i.complete && i.naturalWidth > 0); }")
+        page.screenshot(path=str(screenshots / "dashboard_episode_frames.png"))
+    finally:
+        store.close()

@@ -104,6 +104,13 @@ def test_datasets_loads_it_offline(exported, tmp_path, monkeypatch):
     assert ds[0]["raw_output"] == df.iloc[0]["raw_output"] and ds[0]["prompt"][0]["role"] == "system"
     card = (out / "README.md").read_text()
     assert all(f"`{name}`" in card for name, _, _ in FIELDS) and DATA_FILE in card
+    # the planning of every environment, from the EnvSpecs
+    from deepphy.envs import specs
+    from deepphy.envs.base import Planning
+
+    on_the_fly = [s.title for s in specs().values() if s.planning is Planning.ON_THE_FLY]
+    assert {"Kinetix", "Pooltool", "Angry Birds", "Cut the Rope"} <= set(on_the_fly)
+    assert f"on-the-fly ones ({', '.join(on_the_fly)}) several" in " ".join(card.split())
 
 
 def test_cli_export_replaces_an_earlier_export_and_refuses_other_directories(runs, tmp_path, capsys):

@@ -55,10 +55,10 @@ def test_auccess_excludes_invalid_attempts():
 
 def test_stars_figures():
     records = [rec("a", 0, 1, success=True, stars=3), rec("b", 0, 1, success=True, stars=1),
-               rec("c", 0, 1, success=False, stars=0)]
+               rec("c", 0, 1, success=False, stars=0), rec("d", 0, 1, success=True, stars=0)]
     s = F.stars(F.episodes(records, 10))
-    assert (s.total, s.mean_all, s.mean_completed) == (4, 4 / 3, 2.0)
-    assert s.levels_with == {1: 1, 2: 0, 3: 1}
+    assert (s.total, s.mean_all, s.mean_completed) == (4, 1.0, 4 / 3)
+    assert s.levels_with == {0: 1, 1: 1, 2: 0, 3: 1}  # a level won without a star counts too
 
 
 def test_success_within_steps():
@@ -102,9 +102,10 @@ def test_combined_report_labels_rows_by_setting():
     wm = build_report(RunConfig(env="iphyre", runs=1, format="wm", env_options={"annotate": False}), tasks, [], k_max=10)
     header, rows = table([vla, wm])
     assert header[:3] == ["setting", "group", "n"]
-    assert [r[:2] for r in rows] == [["mock VLA", "all"], ["mock VLA", "M"], ["mock VLA", "S"],
-                                     ["mock WM annotate=False", "all"], ["mock WM annotate=False", "M"],
-                                     ["mock WM annotate=False", "S"]]
+    # groups in the environment's task order, not alphabetical
+    assert [r[:2] for r in rows] == [["mock VLA", "all"], ["mock VLA", "S"], ["mock VLA", "M"],
+                                     ["mock WM annotate=False", "all"], ["mock WM annotate=False", "S"],
+                                     ["mock WM annotate=False", "M"]]
     assert rows[0][3] == "50.0" and rows[3][3] == "0.0"
 
 
@@ -122,7 +123,10 @@ def test_live_metrics_snapshot_counts_finished_episodes_and_rates():
     snap = live.snapshot()
     assert (snap["episodes_done"], snap["episodes_total"], snap["solved"], snap["attempts"]) == (1, 4, 1, 3)
     assert snap["new_attempts"] == 0 and snap["eta_s"] is None  # nothing finished in this session yet
-    now[0] = 110.0
+    live.update(phase="compiling")
+    now[0] = 400.0  # five minutes of compiling kernels: not part of any rate
+    live.update(phase="running")
+    now[0] = 410.0
     # This session: b fails twice more (out of attempts: finished, unsolved), c is solved at once.
     live.add([rec("b", 0, 2, invalid="bad").summary(), rec("b", 0, 3).summary()])
     live.add([rec("c", 0, 1, success=True, steps=4).summary()])
@@ -130,8 +134,9 @@ def test_live_metrics_snapshot_counts_finished_episodes_and_rates():
     snap = live.snapshot()
     assert (snap["episodes_done"], snap["solved"], snap["attempts"], snap["new_attempts"]) == (3, 2, 6, 3)
     assert snap["invalid_attempts"] == 1
-    assert snap["attempts_per_s"] == pytest.approx(3 / 10)
-    assert snap["eta_s"] == pytest.approx(1 * 10 / 2)  # 1 episode left at 2 finished per 10 s
+    assert snap["attempts_per_s"] == pytest.approx(3 / 10)  # over the 10 s running, not the 310 s since start
+    assert snap["eta_s"] == pytest.approx(1 * 10 / 2)  # 1 episode left at 2 finished per 10 s of running
+    assert snap["elapsed_s"] == pytest.approx(310) and snap["running_s"] == pytest.approx(10)
     # An episode is counted once, however many of its attempts arrive.
     assert sum(1 for e in live.episodes.values() if e.finished) == 3
 
@@ -141,18 +146,40 @@ def test_progress_line_says_what_is_happening():
 
     now = [0.0]
     live = LiveMetrics(episodes_total=120, max_attempts=10, clock=lambda: now[0])
-    live.update(phase="starting environment workers", in_flight=0)
+    assert format_progress(live.snapshot()).startswith("starting · episodes 0/120")
+    live.update(phase="compiling", in_flight=0)
     now[0] = 3.0
     line = format_progress(live.snapshot())
-    assert line.startswith("starting environment workers · episodes 0/120 · solved 0 · attempts 0 (0.0/s)")
-    assert "ETA" not in line and line.endswith("3s")
+    assert line.startswith("compiling · episodes 0/120 · solved 0 · attempts 0 · ")  # no rate before running
+    assert "/s" not in line and "ETA" not in line and line.endswith("3s")
     live.update(phase="running", in_flight=64, decisions=200)
     live.add([rec(t, 0, 1, success=True).summary() for t in "abc"])
     now[0] = 75.0
     line = format_progress(live.snapshot())
-    assert "episodes 3/120 · in flight 64 · solved 3 · attempts 3 (0.0/s) · decisions 200" in line
-    assert "ETA 48m45s" in line and line.endswith("1m15s")  # 117 left at 3 per 75 s
+    assert line.startswith("episodes 3/120 · in flight 64 · solved 3 · attempts 3 (0.042/s) · decisions 200 (2.8/s)")
+    # 3 episodes finished and the 64 in flight at 197 of their at most 10 decisions each: 22.7
+    # episodes' work in 72 s of running; 117 - 19.7 episodes' work left
+    assert "ETA 5m09s" in line and line.endswith("1m15s")
     assert "% of finished" not in line
+
+
+def test_eta_counts_the_work_of_episodes_in_flight():
+    """Pooltool as issue 26 saw it: every episode in flight at once, long episodes. Two
+    finished after 50 s of running (16 decisions), the other ten are 79 decisions in."""
+    from deepphy.metrics.live import LiveMetrics
+
+    now = [0.0]
+    live = LiveMetrics(episodes_total=12, max_attempts=1, max_steps=15, clock=lambda: now[0])
+    live.update(phase="compiling")
+    now[0] = 300.0  # five minutes compiling
+    live.update(phase="running")
+    now[0] = 350.0
+    live.add([rec("a", 0, 1, success=True, steps=7).summary(), rec("b", 0, 1, success=True, steps=9).summary()])
+    live.update(in_flight=10, decisions=95)
+    snap = live.snapshot()
+    done_work = 2 + 79 / 15  # episodes' worth of work in 50 s
+    assert snap["eta_s"] == pytest.approx((10 - 79 / 15) * 50 / done_work)  # about 33 s, not 10 x 25 s
+    assert snap["decisions_per_s"] == pytest.approx(95 / 50) and snap["attempts_per_s"] == pytest.approx(2 / 50)
 
 
 def test_wm_predicted_outcomes_are_scored_against_the_attempt():
@@ -175,5 +202,76 @@ def test_wm_predicted_outcomes_are_scored_against_the_attempt():
     wm = build_report(RunConfig(runs=1, format="wm"), tasks, records, k_max=10)
     assert wm["overall"]["mean"]["wm"]["accuracy"] == pytest.approx(0.5)
     text = render_text(wm)
-    assert "PredAcc" in text and "50.0" in text and "predicted success: 1.0 solved, 2.0 failed" in text
+    assert "PredAcc" in text and "50.0" in text and "predicted success: 1 solved, 2 failed" in text
+    assert "4 of 5 decisions stated one" in text  # counts are integers, not 4.0 of 5.0
     assert "wm" not in build_report(RunConfig(runs=1), tasks, records, k_max=10)["overall"]["mean"]
+
+
+# -- the report's table -----------------------------------------------------------------
+
+
+def shots(task, run, solved_at_shot=None, stars=None, group=""):
+    """One Pooltool-like game: solved at that shot, or 15 shots without."""
+    r = rec(task, run, 1, success=solved_at_shot is not None, steps=solved_at_shot or 15, stars=stars, group=group)
+    return [r.model_copy(update={"env": "pooltool"})]
+
+
+def test_single_attempt_environment_has_no_attempt_columns_and_integer_counts():
+    tasks = [Task(env="pooltool", id=t) for t in "abc"]
+    records = (shots("a", 0, 3) + shots("b", 0) + shots("c", 0)
+               + shots("a", 1, 1) + shots("b", 1, 6) + shots("c", 1))
+    report = build_report(RunConfig(env="pooltool", runs=2), tasks, records, k_max=1)
+    header, rows = table([report])
+    assert header == ["group", "n", "Success", "Shot1", "Shot3", "Shot6", "Shot9", "Shot12", "Shot15", "AvgShots",
+                      "Solved", "Invalid"]  # no Att.1 / AvgAtt with one attempt
+    assert rows[0][header.index("Success")] == "50.0±23.6"
+    assert rows[0][header.index("Solved")] == "1.5±0.7" and rows[0][header.index("Invalid")] == "0"  # 1 and 2 solved
+    one = build_report(RunConfig(env="pooltool", runs=1), tasks, records[:3], k_max=1)
+    header, rows = table([one])
+    assert rows[0][header.index("Solved")] == "1"  # a count, not 1.0
+    text = render_text(one)
+    assert text.splitlines()[0].startswith("Pooltool · mock VLA · 1 run(s)")  # the environment's title
+    assert "Shotk: tasks solved within k shots (%)" in text and "Invalid: attempts that ended on an invalid action" in text
+    assert "success rate (%)" not in text  # no header that puts counts under a percentage
+
+
+def test_zero_star_wins_are_counted():
+    tasks = [Task(env="cuttherope", id=t) for t in "ab"]
+    records = [r.model_copy(update={"env": "cuttherope"}) for r in
+               [rec("a", 0, 1, success=True, stars=0, steps=2), rec("b", 0, 1, success=True, stars=2, steps=4)]]
+    report = build_report(RunConfig(env="cuttherope", runs=1), tasks, records, k_max=1)
+    assert report["overall"]["mean"]["stars"]["levels_with"] == {"0": 1, "1": 0, "2": 1, "3": 0}
+    header, rows = table([report])
+    assert header[header.index("Stars"):] == ["Stars", "Stars/lvl", "Stars/won", "0*", "1*", "2*", "3*"]
+    assert rows[0][header.index("0*")] == "1"
+
+
+def test_runs_of_different_task_sets_are_flagged():
+    from deepphy.metrics.report import mixed_task_sets
+
+    two = [Task(env="iphyre", id=t) for t in "ab"]
+    three = two + [Task(env="iphyre", id="c")]
+    records = episode_records("a", 0, 1) + episode_records("b", 0, 2)
+    a = build_report(RunConfig(runs=1), three, records + episode_records("c", 0, None), k_max=10)
+    b = build_report(RunConfig(runs=1, format="wm"), two, records, k_max=10)
+    same = build_report(RunConfig(runs=1, format="wm"), list(reversed(three)), records, k_max=10)
+    assert mixed_task_sets([a, same]) is None  # the same tasks in another order
+    note = mixed_task_sets([a, b])
+    assert note and "n=3" in note and "n=2" in note
+    assert f"note: {note}" in render_text([a, b])
+    other = build_report(RunConfig(runs=1, format="wm"), [Task(env="iphyre", id=t) for t in "abd"], records, k_max=10)
+    assert "n=3 each, other tasks" in mixed_task_sets([a, other])  # as many tasks, not the same ones
+
+
+def test_text_table_stays_within_its_width_with_every_column(tmp_path):
+    from dashboard_support import synthetic_run
+    from deepphy.metrics.report import TEXT_WIDTH, report_of
+
+    wide = [report_of(synthetic_run(tmp_path / f, env="angrybirds", limit=6, stars=True, fmt=f))
+            for f in ("vla", "wm")]  # shots, stars, WM scores, retries, tokens and cost
+    header, _ = table(wide)
+    assert {"Shot8", "3*", "PredS->F", "Retries", "TokensIn", "Cost$"} <= set(header) and len(header) >= 24
+    text = render_text(wide)
+    assert max(len(line) for line in text.splitlines()) <= TEXT_WIDTH
+    for h in header:  # every column is in one of the blocks
+        assert h in text

@@ -1,32 +1,42 @@
-"""The paper's figures (`deepphy plot`) draw exactly the report's numbers; `report --latex`
-is the report's table."""
+"""The paper's figures (`deepphy plot`) draw exactly the report's numbers, on axes a paper
+can use; `report --latex` is the report's table, and it compiles."""
 
 import json
+import re
+import shutil
+import subprocess
 
 import pytest
 from matplotlib.figure import Figure
 
 from dashboard_support import mock_run, synthetic_run
 from deepphy.cli import main
-from deepphy.metrics.report import render_latex, report_of, table
+from deepphy.metrics.report import LATEX_PREAMBLE, render_latex, report_of, table
 from deepphy.plots import (
-    draw_ablation_dumbbell, draw_cumulative_bars, draw_star_bars, draw_success_by_shot, draw_vla_wm_scatter,
-    figures_for, plot_all,
+    draw_ablation_dumbbell, draw_cumulative_bars, draw_group_bars, draw_star_bars, draw_success_by_step,
+    draw_vla_wm_scatter, figures_for, plot_all,
 )
+
+KINETIX = ["s_h0_weak_thrust", "s_h1_thrust_over_ball", "m_arm_hard", "m_arm_left", "l_car_launch", "l_car_swing_around"]
 
 
 @pytest.fixture(scope="module")
 def dirs(ray_cluster, tmp_path_factory):
     base = tmp_path_factory.mktemp("plot-runs")
-    kinetix = ["s_h0_weak_thrust", "s_h1_thrust_over_ball", "m_arm_hard", "m_arm_left", "l_car_launch", "l_car_swing_around"]
     return {
         "vla": mock_run(tmp_path_factory),
         "wm": mock_run(tmp_path_factory, fmt="wm"),
-        "kinetix": synthetic_run(base / "kin-annotated", tasks=kinetix, runs=3),
-        "kinetix-plain": synthetic_run(base / "kin-plain", tasks=kinetix, runs=3, env_options={"annotate": False}),
+        "kinetix": synthetic_run(base / "kin-annotated", tasks=KINETIX, runs=3),
+        "kinetix-plain": synthetic_run(base / "kin-plain", tasks=KINETIX, runs=3, env_options={"annotate": False}),
         "pooltool": synthetic_run(base / "pool", env="pooltool", limit=8, max_steps=15, p_success=0.5),
         "stars": synthetic_run(base / "stars", env="angrybirds", limit=8, stars=True),
     }
+
+
+@pytest.fixture(scope="module")
+def zero(tmp_path_factory):
+    """An I-PHYRE run that solved nothing."""
+    return synthetic_run(tmp_path_factory.mktemp("zero") / "run", env="iphyre", limit=4, p_success=0.0)
 
 
 def _axes():
@@ -47,6 +57,25 @@ def test_cumulative_bars_are_the_reports_success_at_1_4_7_10(dirs):
         # what is on the axes: the stacked segments, in percent
         assert bars[4 * i : 4 * i + 4] == pytest.approx([100 * s for s in drawn["segments"][i]])
     assert drawn["labels"] == ["mock VLA", "mock WM"]
+    # the average attempts are written above the bars, on the one y axis (no twin axis)
+    assert [t.get_text() for t in ax.texts][:2] == [f"{r['overall']['mean']['avg_attempts']:.2f}" for r in reports]
+    assert len(ax.figure.axes) == 1
+    assert ax.get_ylim()[0] == 0 and ax.get_ylim()[1] in (10, 20, 30, 40, 50, 60, 70, 80, 90, 100)
+
+
+def test_one_setting_bar_does_not_fill_the_figure(dirs):
+    ax = _axes()
+    draw_cumulative_bars(ax, [report_of(dirs["vla"])])
+    lo, hi = ax.get_xlim()
+    assert ax.patches[0].get_width() / (hi - lo) < 0.25
+
+
+def test_all_zero_results_get_a_0_to_10_percent_axis(zero):
+    report = report_of(zero)
+    assert report["overall"]["mean"]["success_at"][-1] == 0
+    ax = _axes()
+    draw_cumulative_bars(ax, [report])
+    assert ax.get_ylim() == (0, 10)
 
 
 def test_vla_wm_scatter_pairs_formats_at_pass_at_k(dirs):
@@ -60,55 +89,83 @@ def test_vla_wm_scatter_pairs_formats_at_pass_at_k(dirs):
     assert p["wm"] == reports[1]["overall"]["mean"]["success_at"][9]
     assert list(ax.collections[0].get_offsets()[0]) == pytest.approx([100 * p["vla"], 100 * p["wm"]])
     assert draw_vla_wm_scatter(_axes(), reports, k=3)["points"][0]["vla"] == reports[0]["overall"]["mean"]["success_at"][2]
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["I-PHYRE"]  # the environment's title
 
 
 def test_annotation_dumbbell_by_size(dirs):
     with_, without = report_of(dirs["kinetix"]), report_of(dirs["kinetix-plain"])
     drawn = draw_ablation_dumbbell(_axes(), [without, with_])
-    assert [row["group"] for row in drawn["rows"]] == ["S", "M", "L"]  # the environment's order, not alphabetical
+    assert [row["group"] for row in drawn["rows"]] == ["S", "M", "L", None]  # the environment's order, then all
     for row in drawn["rows"]:
-        assert row["with"] == with_["groups"][row["group"]]["mean"]["success_at"][0]
-        assert row["without"] == without["groups"][row["group"]]["mean"]["success_at"][0]
+        sec = with_["groups"][row["group"]] if row["group"] else with_["overall"]
+        plain = without["groups"][row["group"]] if row["group"] else without["overall"]
+        assert row["with"] == sec["mean"]["success_at"][0] and row["without"] == plain["mean"]["success_at"][0]
     assert any(row["with"] != row["without"] for row in drawn["rows"])
 
 
-def test_success_by_shot_and_stars(dirs):
-    pool = report_of(dirs["pooltool"])
-    drawn = draw_success_by_shot(_axes(), [pool])
-    m = pool["overall"]["mean"]
-    assert drawn["series"][0]["shots"] == [int(k) for k in m["success_within_steps"]]
-    assert drawn["series"][0]["success"] == list(m["success_within_steps"].values())
-    assert drawn["series"][0]["avg_steps"] == m["avg_steps"]
+def test_kinetix_per_size_with_and_without_annotation(dirs):
+    reports = [report_of(dirs["kinetix"]), report_of(dirs["kinetix-plain"])]
+    ax = _axes()
+    drawn = draw_group_bars(ax, reports)
+    assert drawn["groups"] == ["S", "M", "L", "all"]
+    for bars, r in zip(drawn["bars"], reports):
+        assert bars["success"] == [r["groups"][g]["mean"]["success_at"][0] for g in "SML"] + [r["overall"]["mean"]["success_at"][0]]
+    assert [b["label"] for b in drawn["bars"]] == ["mock VLA", "mock VLA annotate=False"]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["S", "M", "L", "all"] and ax.get_xlabel() == "size"
+    assert [p.get_height() for p in ax.patches][:4] == pytest.approx([100 * v for v in drawn["bars"][0]["success"]])
 
+
+def test_success_by_shot_has_ticks_at_the_checkpoints(dirs):
+    pool = report_of(dirs["pooltool"])
+    ax = _axes()
+    drawn = draw_success_by_step(ax, [pool])
+    m = pool["overall"]["mean"]
+    series = drawn["series"][0]
+    assert series["steps"] == list(range(1, 16)) and series["success"] == m["success_by_step"]
+    for k, v in m["success_within_steps"].items():  # the curve passes through the table's figures
+        assert series["success"][int(k) - 1] == v
+    assert series["avg_steps"] == m["avg_steps"]
+    assert list(ax.get_xticks()) == [1, 3, 6, 9, 12, 15] == drawn["ticks"]
+    assert ax.get_xlabel() == "shots (k)"
+    kinetix = draw_success_by_step(_axes(), [report_of(dirs["kinetix"])])
+    assert kinetix["ticks"] == list(range(1, 17))  # no checkpoints: every decision
+
+
+def test_star_bars(dirs):
     stars = report_of(dirs["stars"])
     ax = _axes()
     drawn = draw_star_bars(ax, [stars])
     st = stars["overall"]["mean"]["stars"]
-    assert drawn["levels_with"][0] == [st["levels_with"][k] for k in ("1", "2", "3")]
+    assert drawn["levels_with"][0] == [st["levels_with"][k] for k in drawn["stars"]]
     assert drawn["mean_all"][0] == st["mean_all"] and drawn["mean_completed"][0] == st["mean_completed"]
     assert [p.get_height() for p in ax.patches] == drawn["levels_with"][0]
+    assert ax.get_ylim()[1] >= max(v + e for v, e in zip(drawn["levels_with"][0], drawn["std"][0]))
 
 
 def test_which_figures_apply_is_read_from_the_reports(dirs):
-    stems = {stem for stem, *_ in figures_for([report_of(d) for d in dirs.values()])}
-    assert stems == {"cumulative_iphyre", "vla_vs_wm", "annotate_kinetix", "by_shot_pooltool", "by_shot_angrybirds",
-                     "stars_angrybirds"}
-    assert figures_for([report_of(dirs["kinetix"])]) == []  # K = 1, one setting: nothing to draw
+    figures = figures_for([report_of(d) for d in dirs.values()])
+    assert {stem for stem, *_ in figures} == {
+        "cumulative_iphyre", "by_group_iphyre", "vla_vs_wm", "by_decision_kinetix", "by_size_kinetix",
+        "annotate_kinetix", "by_shot_pooltool", "by_shot_angrybirds", "stars_angrybirds"}  # 8 levels: one scene
+    titles = {stem: title for stem, title, *_ in figures}
+    assert titles["cumulative_iphyre"].startswith("I-PHYRE: ") and titles["by_shot_angrybirds"].startswith("Angry Birds: ")
+    # Kinetix alone, one setting: success by decision and per size
+    assert {stem for stem, *_ in figures_for([report_of(dirs["kinetix"])])} == {"by_decision_kinetix", "by_size_kinetix"}
 
 
 def test_plot_cli_writes_png_pdf_and_the_drawn_data(dirs, tmp_path, capsys):
     out = tmp_path / "figs"
     assert main(["plot", *map(str, dirs.values()), "--out", str(out)]) == 0
     printed = capsys.readouterr().out.split()
-    for stem in ("cumulative_iphyre", "vla_vs_wm", "annotate_kinetix", "by_shot_pooltool", "stars_angrybirds"):
+    for stem in ("cumulative_iphyre", "vla_vs_wm", "annotate_kinetix", "by_size_kinetix", "by_shot_pooltool",
+                 "stars_angrybirds"):
         assert (out / f"{stem}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert (out / f"{stem}.pdf").read_bytes()[:5] == b"%PDF-"
         assert str(out / f"{stem}.png") in printed
     data = json.loads((out / "figures.json").read_text())
     assert data["vla_vs_wm"]["points"][0]["vla"] == report_of(dirs["vla"])["overall"]["mean"]["success_at"][9]
-    assert main(["plot", str(dirs["kinetix"]), "--out", str(tmp_path / "none")]) == 2
-    assert "none of the figures applies" in capsys.readouterr().err
-    assert not (tmp_path / "none").exists()
+    assert main(["plot", str(dirs["kinetix"]), "--out", str(tmp_path / "kinetix")]) == 0
+    assert (tmp_path / "kinetix" / "by_size_kinetix.png").exists()
 
 
 def test_plot_all_returns_the_files(dirs, tmp_path):
@@ -116,20 +173,68 @@ def test_plot_all_returns_the_files(dirs, tmp_path):
     assert {p.name for p in written} == {"by_shot_pooltool.png", "by_shot_pooltool.pdf", "figures.json"}
 
 
+# -- LaTeX --------------------------------------------------------------------------------
+
+
+def _plain(cell):
+    return (cell.replace(r"$\pm$", "±").replace(r"\_", "_").replace(r"$\star$", "*").replace(r"$\to$", "->")
+            .replace(r"\$", "$"))
+
+
 def test_latex_is_the_report_table(dirs, capsys):
     reports = [report_of(dirs["vla"]), report_of(dirs["wm"])]
     header, rows = table(reports)
     latex = render_latex(reports)
     lines = latex.splitlines()
-    assert lines[1].startswith(r"\begin{tabular}{ll") and lines[-1] == r"\end{tabular}"
-    body = [line for line in lines if line.endswith(r" \\")]
-    assert len(body) == 1 + len(rows)
-
-    def plain(cell):
-        return cell.replace(r"$\pm$", "±").replace(r"\_", "_").replace(r"$\star$", "*")
-
-    assert [plain(c) for c in body[0][:-3].split(" & ")] == header
-    assert [[plain(c) for c in line[:-3].split(" & ")] for line in body[1:]] == rows
-    assert r"multi\_ball" in latex and "±" not in latex
+    assert lines[0].endswith(LATEX_PREAMBLE) and lines[-1] == r"\end{table}"
+    assert r"\caption{I-PHYRE: mock VLA; mock WM; 2 run(s), seed 3." in latex
+    assert r"\label{tab:deepphy-iphyre-mock-vla-mock-wm}" in latex
+    # the blocks, side by side again, are the table
+    blocks = [b.splitlines() for b in latex.split(r"\begin{tabular}{")[2:]]  # the first holds the others
+    assert len(blocks) > 1  # 16 columns: split
+    got_header, got_rows = [], [[] for _ in rows]
+    for n, block in enumerate(blocks):
+        body = [[_plain(c) for c in line[:-3].split(" & ")] for line in block if line.endswith(r" \\")]
+        skip = 3 if n else 0  # setting, group, n: repeated in every block
+        got_header += body[0][skip:]
+        for i, line in enumerate(body[1:]):
+            got_rows[i] += line[skip:]
+    assert got_header == header and got_rows == rows
+    cells = "\n".join(line for block in blocks for line in block if line.endswith(r" \\"))
+    assert r"multi\_ball" in cells and "±" not in latex
+    assert r"PredS$\to$F" in cells and not re.search(r"[<>]", cells.replace("$\\to$", ""))
     assert main(["report", "--latex", str(dirs["vla"]), str(dirs["wm"])]) == 0
     assert capsys.readouterr().out.strip() == latex
+
+
+def _pdflatex(tex: str, where) -> str:
+    """Compile a document holding `tex`; returns the log (fails on an error)."""
+    doc = where / "table.tex"
+    doc.write_text("\\documentclass{article}\n" + LATEX_PREAMBLE + "\n\\begin{document}\n" + tex
+                   + "\n\\end{document}\n")
+    done = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", doc.name], cwd=where,
+                          capture_output=True, text=True, timeout=120)
+    log = (where / "table.log").read_text(errors="replace")
+    assert done.returncode == 0, log[-2000:]
+    return log
+
+
+@pytest.mark.skipif(shutil.which("pdflatex") is None,
+                    reason="needs pdflatex with booktabs (Debian: texlive-latex-base texlive-latex-recommended)")
+def test_every_latex_table_compiles_and_fits_the_page(dirs, tmp_path):
+    wide = synthetic_run(tmp_path / "wide", env="angrybirds", limit=4, stars=True, fmt="wm")  # tokens, retries
+    cases = {
+        "one run": [report_of(dirs["vla"])],
+        "vla and wm": [report_of(dirs["vla"]), report_of(dirs["wm"])],
+        "kinetix sizes": [report_of(dirs["kinetix"]), report_of(dirs["kinetix-plain"])],
+        "pooltool shots": [report_of(dirs["pooltool"])],
+        "stars, wm, tokens": [report_of(wide), report_of(dirs["stars"])],
+    }
+    for name, reports in cases.items():
+        header, _ = table(reports)
+        where = tmp_path / re.sub(r"\W+", "-", name)
+        where.mkdir()
+        log = _pdflatex(render_latex(reports), where)
+        assert "Overfull \\hbox" not in log and "Missing character" not in log, (name, len(header))
+        assert (where / "table.pdf").read_bytes()[:5] == b"%PDF-"
+    assert len(table(cases["stars, wm, tokens"])[0]) >= 20  # the widest of them: it is split and fits

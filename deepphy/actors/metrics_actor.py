@@ -13,8 +13,9 @@ from deepphy.runs.records import AttemptSummary
 
 
 class MetricsImpl:
-    def __init__(self, episodes_total: int, max_attempts: int, run: dict[str, Any] | None = None) -> None:
-        self.live = LiveMetrics(episodes_total, max_attempts)
+    def __init__(self, episodes_total: int, max_attempts: int, max_steps: int = 1,
+                 run: dict[str, Any] | None = None) -> None:
+        self.live = LiveMetrics(episodes_total, max_attempts, max_steps)
         self.run = run or {}  # where the run writes and what it evaluates: dashboards find it here
 
     def add(self, summaries: list[AttemptSummary], resumed: bool = False) -> None:
@@ -27,10 +28,10 @@ class MetricsImpl:
         return {**self.live.snapshot(), **self.run}
 
 
-def make_metrics_actor(episodes_total: int, max_attempts: int, *, name: str | None = None,
+def make_metrics_actor(episodes_total: int, max_attempts: int, max_steps: int = 1, *, name: str | None = None,
                        run: dict[str, Any] | None = None):
     return MetricsActor.options(num_cpus=0, name=name, scheduling_strategy=beside_driver()).remote(
-        episodes_total, max_attempts, run)
+        episodes_total, max_attempts, max_steps, run)
 
 
 MetricsActor = ray.remote(MetricsImpl)  # one class per process (see env_worker.EnvWorker)

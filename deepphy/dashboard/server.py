@@ -271,15 +271,13 @@ def live_only_view(ray_id: str, snap: dict[str, Any]) -> dict[str, Any]:
     label = setting({"model": config.get("model", "?"), "format": config.get("format", "?"),
                      "env_options": config.get("env_options", {})})
     done, total = snap.get("episodes_done", 0), snap.get("episodes_total", 0)
-    elapsed = snap.get("elapsed_s") or 0.0
-    rate_eps = done / elapsed if elapsed > 0 else 0.0
     return {
         "id": f"ray-{ray_id}", "path": snap.get("run_dir", ""), "name": ray_id, "label": label,
         "env": config.get("env", "?"), "model": config.get("model", "?"), "format": config.get("format", "?"),
         "live_only": True, "live": True,
-        "progress": {"status": "running", "episodes_done": done, "episodes_total": total,
+        "progress": {"status": "running", "phase": snap.get("phase"), "episodes_done": done, "episodes_total": total,
                      "attempts": snap.get("attempts", 0), "attempts_per_s": snap.get("attempts_per_s"),
-                     "eta_s": (total - done) / rate_eps if rate_eps else None, "loading": False},
+                     "eta_s": snap.get("eta_s"), "loading": False},
         "totals": {k: snap.get(k, 0) for k in ("solved", "attempts", "invalid_attempts", "model_errors", "retries",
                                                "input_tokens", "output_tokens", "cost_usd")},
         "curve": None, "stars": None, "table": None, "report": None, "errors": [],

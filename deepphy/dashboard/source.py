@@ -10,7 +10,6 @@ from __future__ import annotations
 import bisect
 import hashlib
 import json
-import os
 import re
 import time
 from dataclasses import dataclass
@@ -20,8 +19,9 @@ from typing import Any
 from pydantic import ValidationError
 
 from deepphy.metrics import figures as F
-from deepphy.metrics.report import build_report, setting, table
+from deepphy.metrics.report import build_report, setting, table, table_key
 from deepphy.runs.records import AttemptRecord
+from deepphy.runs.status import read_status, writer_holds_lock
 from deepphy.runs.store import ATTEMPTS, CONFIG, read_config
 
 # Bytes of the log consumed per poll: a huge log loads in slices, so the page shows
@@ -29,6 +29,7 @@ from deepphy.runs.store import ATTEMPTS, CONFIG, read_config
 READ_CHUNK = 8 * 1024 * 1024
 RATE_WINDOW_S = 60.0  # attempts/s and ETA of a live run: over the records of the last minute
 GRID_PAGE = 200  # tasks per grid page
+RUN_SEARCH_DEPTH = 3  # how many folders below a directory given to the dashboard its runs are looked for
 _IMAGE = re.compile(r"^<image ([^:>]*): (.*)>$", re.S)  # prompt_as_json's image placeholder
 
 
@@ -38,22 +39,6 @@ def run_id(path: Path) -> str:
 
 def is_run_dir(path: Path) -> bool:
     return (path / CONFIG).is_file()
-
-
-def writer_holds_lock(path: Path) -> bool | None:
-    """Whether a `deepphy run` holds the directory's lock (it is writing now), read from
-    /proc/locks so that the dashboard never takes the lock itself (a run starting at that
-    moment would then refuse the directory). None where /proc/locks does not exist."""
-    try:
-        st = (path / ".lock").stat()
-    except FileNotFoundError:
-        return False
-    try:
-        locks = Path("/proc/locks").read_text()
-    except OSError:
-        return None
-    wanted = f"{os.major(st.st_dev):02x}:{os.minor(st.st_dev):02x}:{st.st_ino}"
-    return any(line.split()[5] == wanted for line in locks.splitlines() if len(line.split()) > 5 and "FLOCK" in line)
 
 
 def read_whole_lines(log: Path, offset: int, limit: int = READ_CHUNK) -> tuple[list[bytes], int]:
@@ -173,25 +158,15 @@ class RunSource:
         return self._report[1]
 
     def curve(self, report: dict[str, Any]) -> dict[str, Any]:
-        """The success curve the report implies: within k attempts (K > 1), within k decisions
-        (the report's checkpoints, else every decision for K = 1), mean and std over runs."""
+        """The success curve the report implies, mean and std over runs: within k attempts
+        (K > 1), else within k decisions, k = 1..max (one attempt of many decisions)."""
         m, s = report["overall"]["mean"], report["overall"]["std"]
-        if "success_within_steps" in m:
-            x = list(m["success_within_steps"])
-            return {"kind": "decisions", "x": [int(k) for k in x],
-                    "mean": [m["success_within_steps"][k] for k in x], "std": [s["success_within_steps"][k] for k in x]}
-        if report["max_attempts"] > 1:
+        if report["max_attempts"] > 1 or "success_by_step" not in m:
             return {"kind": "attempts", "x": list(range(1, report["max_attempts"] + 1)),
                     "mean": m["success_at"], "std": s["success_at"]}
-        # One attempt of many decisions without checkpoints in the report: every decision,
-        # with the report's own functions (its last point is the report's success_at[0]).
-        wanted = set(self.task_index)
-        eps = [e for e in F.episodes(self.records, self.k_max) if e.task in wanted and e.run < self.config.runs]
-        xs = list(range(1, self.max_steps + 1))
-        per_run = [[F.success_within_steps([e for e in eps if e.run == r], k, len(self.tasks)) for k in xs]
-                   for r in range(self.config.runs)]
-        stats = [F.MeanStd.of([p[i] for p in per_run]) for i in range(len(xs))]
-        return {"kind": "decisions", "x": xs, "mean": [st.mean for st in stats], "std": [st.std for st in stats]}
+        return {"kind": "decisions", "noun": report["step_noun"], "x": list(range(1, len(m["success_by_step"]) + 1)),
+                "mean": m["success_by_step"], "std": s["success_by_step"],
+                "checkpoints": [int(k) for k in m.get("success_within_steps", {})]}
 
     def progress(self, report: dict[str, Any], now: float | None = None) -> dict[str, Any]:
         now = time.time() if now is None else now
@@ -202,20 +177,23 @@ class RunSource:
         writing = writer_holds_lock(self.path)
         if writing is None:  # no /proc/locks: a log that grew in the last half minute is live
             writing = now - (self.path / ATTEMPTS).stat().st_mtime < 30 if self.log_size else False
-        rate = eta = None
+        rate = eta = phase = None
         if writing:
+            # the driver's phase (starting, compiling, running): its live snapshot, else its status file
+            status_file = read_status(self.path)
+            phase = (self.snapshot or {}).get("phase") or (status_file.phase if status_file else None)
             cutoff = now - RATE_WINDOW_S
             span = min(RATE_WINDOW_S, now - (self._first_started or now))
             if span > 1:
                 rate = (len(self._finished) - bisect.bisect_left(self._finished, cutoff)) / span
                 ended = sum(1 for t in self._episode_ends.values() if t >= cutoff)
                 eta = (total - done) / (ended / span) if ended else None
-            if self.snapshot:  # the live run's own figure
-                rate = self.snapshot.get("attempts_per_s", rate)
+            if self.snapshot and self.snapshot.get("attempts_per_s") is not None:  # the live run's own figure
+                rate = self.snapshot["attempts_per_s"]
         elif len(self._finished) > 1 and self._first_started:
             rate = len(self._finished) / max(self._finished[-1] - self._first_started, 1e-9)
         status = "running" if writing else "complete" if done == total else "incomplete"
-        return {"status": status, "episodes_done": done, "episodes_total": total, "attempts": attempts,
+        return {"status": status, "phase": phase, "episodes_done": done, "episodes_total": total, "attempts": attempts,
                 "attempts_per_s": rate, "eta_s": eta, "loading": self.loading,
                 "bytes_read": self.offset, "bytes_total": self.log_size}
 
@@ -229,12 +207,12 @@ class RunSource:
         header, rows = table([report])
         return {
             "id": self.id, "path": str(self.path), "name": self.path.name, "label": setting(report),
-            "env": report["env"], "model": report["model"], "format": report["format"],
+            "env": report["env"], "title": report["title"], "model": report["model"], "format": report["format"],
             "env_options": report["env_options"], "runs": report["runs"], "k_max": report["max_attempts"],
             "groups": sorted({t.group for t in self.tasks if t.group}), "tasks": len(self.tasks),
             "version": self.version, "progress": self.progress(report), "totals": totals,
             "curve": self.curve(report), "stars": report["overall"]["mean"].get("stars"),
-            "table": {"header": header, "rows": rows}, "report": report, "errors": self.errors[-5:],
+            "table": {"header": header, "rows": rows, "key": table_key([report])}, "report": report, "errors": self.errors[-5:],
             "live": self.snapshot is not None,
         }
 
@@ -321,11 +299,16 @@ class RunSource:
         return target
 
 
-def runs_in(path: Path) -> list[Path]:
-    """The run directory `path`, or the run directories directly inside it (none if it
-    does not exist yet)."""
+def runs_in(path: Path, depth: int = RUN_SEARCH_DEPTH) -> list[Path]:
+    """The run directory `path`, or the run directories below it, at most `depth` folders
+    down (runs/<model>/<env>/ included). A run directory's own folders and hidden folders
+    are not searched."""
     if is_run_dir(path):
         return [path]
-    if not path.is_dir():
+    if depth == 0 or not path.is_dir():
         return []
-    return sorted(p for p in path.iterdir() if p.is_dir() and is_run_dir(p))
+    try:
+        children = sorted(p for p in path.iterdir() if p.is_dir() and not p.name.startswith("."))
+    except OSError:  # unreadable: nothing found here
+        return []
+    return [run for child in children for run in runs_in(child, depth - 1)]

@@ -29,6 +29,7 @@ class ReportSpec(BaseModel):
 
     step_checkpoints: tuple[int, ...] = ()  # success within k decisions (Pooltool: shots 1, 3, 6, ...)
     step_noun: str = "step"  # what one decision is called in reports ("shot", "decision")
+    group_noun: str = "group"  # what a task group is called in figures ("size", "setup")
     auccess: bool = False  # PHYRE's AUCCESS (invalid attempts not counted)
     stars: bool = False  # the games' stars
 

@@ -136,7 +136,7 @@ class StarFigures:
     total: int
     mean_all: float  # over all tasks (unfinished count 0)
     mean_completed: float | None  # over solved tasks
-    levels_with: dict[int, int]  # stars -> number of solved tasks with exactly that many
+    levels_with: dict[int, int]  # stars (0-3) -> number of solved tasks with exactly that many
 
 
 def stars(eps: Sequence[Episode], n_tasks: int | None = None) -> StarFigures:
@@ -147,7 +147,7 @@ def stars(eps: Sequence[Episode], n_tasks: int | None = None) -> StarFigures:
         total=sum(got),
         mean_all=sum(got) / n if n else 0.0,
         mean_completed=mean(completed) if completed else None,
-        levels_with={s: sum(1 for c in completed if c == s) for s in (1, 2, 3)},
+        levels_with={s: sum(1 for c in completed if c == s) for s in (0, 1, 2, 3)},
     )
 
 

@@ -13,11 +13,14 @@ from deepphy.runs.records import AttemptSummary
 
 
 class LiveMetrics:
-    def __init__(self, episodes_total: int, max_attempts: int, clock: Callable[[], float] = time.time) -> None:
+    def __init__(self, episodes_total: int, max_attempts: int, max_steps: int = 1,
+                 clock: Callable[[], float] = time.time) -> None:
         self.episodes_total = episodes_total
         self.max_attempts = max_attempts
+        self.max_steps = max_steps  # decisions per attempt: an episode is at most K x this many
         self.clock = clock
         self.started = clock()
+        self.running_since: float | None = None  # when the "running" phase began: rates count from here
         # Snapshots are polled twice a second: keep each episode's figures up to date as its
         # attempts arrive instead of re-deriving every episode per poll.
         self.attempts: dict[tuple[str, int], list[AttemptSummary]] = defaultdict(list)
@@ -25,6 +28,7 @@ class LiveMetrics:
         self.finished: set[tuple[str, int]] = set()
         self.finished_before = 0  # episodes already finished when this session started
         self.new_attempts = 0
+        self.new_decisions: dict[tuple[str, int], int] = defaultdict(int)  # per episode, this session's
         self.activity: dict[str, Any] = {"phase": "starting", "in_flight": 0, "decisions": 0, "errored": 0}
 
     def add(self, summaries: Iterable[AttemptSummary], resumed: bool = False) -> None:
@@ -33,6 +37,8 @@ class LiveMetrics:
             self.attempts[(s.task, s.run)].append(s)
             touched.add((s.task, s.run))
             self.new_attempts += not resumed
+            if not resumed:
+                self.new_decisions[(s.task, s.run)] += s.decisions
         for key in touched:
             self.episodes[key] = F.episodes(self.attempts[key], self.max_attempts)[0]
             if key not in self.finished and self.episodes[key].finished:
@@ -40,24 +46,38 @@ class LiveMetrics:
                 self.finished_before += resumed
 
     def update(self, **activity: Any) -> None:
-        """The driver's counters: phase, episodes in flight, decisions made, episodes errored."""
+        """The driver's counters: phase, episodes in flight, decisions made, episodes errored.
+        Attempts/s and the ETA count from the start of the "running" phase, so that starting
+        workers and compiling kernels (minutes for Pooltool) do not dilute them."""
+        if activity.get("phase") == "running" and self.running_since is None:
+            self.running_since = self.clock()
         self.activity.update(activity)
 
     def snapshot(self) -> dict[str, Any]:
         eps = list(self.episodes.values())
-        elapsed = self.clock() - self.started
+        now = self.clock()
+        running = None if self.running_since is None else now - self.running_since
         done = len(self.finished)
-        done_now = done - self.finished_before
         left = self.episodes_total - done
-        eta = left * elapsed / done_now if done_now and left else (0.0 if not left else None)
+        # Work done this session, in episodes: the finished ones, plus the episodes in flight
+        # at their decisions so far over the most an episode takes (K x decisions); so many
+        # episodes in flight at once (Pooltool, Kinetix) do not make the ETA run long.
+        decisions = self.activity.get("decisions", 0)
+        in_finished = sum(self.new_decisions[k] for k in self.finished if k in self.new_decisions)
+        partial = min(self.activity.get("in_flight", 0),
+                      max(0, decisions - in_finished) / (self.max_attempts * self.max_steps))
+        progress = done - self.finished_before + partial
+        eta = 0.0 if not left else max(0.0, left - partial) * running / progress if progress and running else None
         return {
             "episodes_done": done,
             "episodes_total": self.episodes_total,
             **F.totals(eps),
             "new_attempts": self.new_attempts,
-            "attempts_per_s": self.new_attempts / elapsed if elapsed > 0 else 0.0,
+            "attempts_per_s": self.new_attempts / running if running else None,
+            "decisions_per_s": decisions / running if running else None,
             "solved": sum(e.solved for e in eps),
-            "elapsed_s": elapsed,
+            "elapsed_s": now - self.started,
+            "running_s": running,
             "eta_s": eta,
             **self.activity,
         }
@@ -70,9 +90,9 @@ def format_progress(s: dict[str, Any]) -> str:
     if s.get("in_flight"):
         parts.append(f"in flight {s['in_flight']}")
     parts.append(f"solved {s['solved']}")
-    parts.append(f"attempts {s['attempts']} ({s['attempts_per_s']:.1f}/s)")
+    parts.append(f"attempts {s['attempts']}" + _rate(s.get("attempts_per_s")))
     if s.get("decisions", 0) > s["new_attempts"]:
-        parts.append(f"decisions {s['decisions']}")
+        parts.append(f"decisions {s['decisions']}" + _rate(s.get("decisions_per_s")))
     if s["invalid_attempts"]:
         parts.append(f"invalid {s['invalid_attempts']}")
     if s["model_errors"] or s["retries"]:
@@ -85,6 +105,13 @@ def format_progress(s: dict[str, Any]) -> str:
         parts.append(f"ETA {_duration(s['eta_s'])}")
     parts.append(_duration(s["elapsed_s"]))
     return " · ".join(parts)
+
+
+def _rate(per_s: float | None) -> str:
+    """" (12/s)", " (1.5/s)", " (0.04/s)": two significant digits below 10/s; nothing before running."""
+    if per_s is None:
+        return ""
+    return f" ({per_s:.0f}/s)" if per_s >= 10 else f" ({per_s:.2g}/s)"
 
 
 def _duration(seconds: float) -> str:

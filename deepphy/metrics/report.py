@@ -1,22 +1,30 @@
 """The paper-style report of a run directory: figures per run, mean and std over runs,
-overall and per task group, rendered as text, JSON, CSV or Markdown."""
+overall and per task group, rendered as text, JSON, CSV, Markdown or LaTeX."""
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
+import re
 from collections import defaultdict
-from typing import Any, Sequence
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
 
 from deepphy.config import RunConfig
-from deepphy.envs import ReportSpec, Task, get_spec
+from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.metrics import figures as F
 from deepphy.runs.records import AttemptRecord
 
+TEXT_WIDTH = 120  # characters: a wider text table is split into blocks of column groups
+LATEX_WIDTH = 80  # characters of plain cell text per LaTeX block (~ an article's \linewidth at 10 pt)
+LATEX_PREAMBLE = r"\usepackage{booktabs}\usepackage{graphicx}"
 
-def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, figures: ReportSpec, run: int,
+
+def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, spec: EnvSpec, run: int,
                  wm_records: list[AttemptRecord] | None) -> dict[str, Any]:
+    figures = spec.report
     finished = [e for e in eps if e.finished]
     solved = sum(e.solved for e in eps)
     out: dict[str, Any] = {
@@ -29,9 +37,11 @@ def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, figures: Report
         "avg_attempts": F.average_attempts(eps),
         **F.totals(eps),
     }
+    if spec.max_steps > 1:  # the whole curve (figures), and the protocol's checkpoints (tables)
+        out["success_by_step"] = [F.success_within_steps(eps, k, n_tasks) for k in range(1, spec.max_steps + 1)]
+        out["avg_steps"] = F.average_steps(eps)
     if figures.step_checkpoints:
         out["success_within_steps"] = {str(k): F.success_within_steps(eps, k, n_tasks) for k in figures.step_checkpoints}
-        out["avg_steps"] = F.average_steps(eps)
     if figures.auccess:
         out["auccess"] = F.auccess(eps, n_tasks)
     if wm_records is not None:
@@ -70,7 +80,7 @@ def _mean_std(per_run: list[dict[str, Any]]) -> tuple[dict[str, Any], dict[str, 
     return means, stds
 
 
-def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int, figures: ReportSpec,
+def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int, spec: EnvSpec,
              wm_records: list[AttemptRecord] | None) -> dict[str, Any]:
     """Figures per run, then mean and std. `wm_records`: the records to score WM predictions on."""
     by_run: dict[int, list[F.Episode]] = defaultdict(list)
@@ -78,7 +88,7 @@ def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int,
         by_run[e.run].append(e)
     wanted = {t.id for t in tasks}
     per_run = [
-        _run_figures(by_run.get(r, []), len(tasks), k_max, figures, r,
+        _run_figures(by_run.get(r, []), len(tasks), k_max, spec, r,
                      None if wm_records is None else [x for x in wm_records if x.run == r and x.task in wanted])
         for r in range(runs)
     ]
@@ -86,27 +96,36 @@ def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int,
     return {"tasks": len(tasks), "per_run": per_run, "mean": mean, "std": std}
 
 
+def task_set_digest(tasks: Sequence[Task]) -> str:
+    """Equal for two runs exactly when they evaluate the same tasks (in any order)."""
+    return hashlib.sha256("\n".join(sorted(t.id for t in tasks)).encode()).hexdigest()[:16]
+
+
 def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[AttemptRecord], k_max: int) -> dict[str, Any]:
-    figures = get_spec(config.env).report
+    spec = get_spec(config.env)
     wanted = {t.id for t in tasks}
     eps = [e for e in F.episodes(records, k_max) if e.task in wanted and e.run < config.runs]
     wm = list(records) if config.format.value == "wm" else None
     report: dict[str, Any] = {
         "env": config.env,
+        "title": spec.title,
         "model": config.model,
         "format": config.format.value,
         "runs": config.runs,
         "seed": config.seed,
         "max_attempts": k_max,
-        "step_noun": figures.step_noun,
+        "max_steps": spec.max_steps,
+        "step_noun": spec.report.step_noun,
+        "group_noun": spec.report.group_noun,
         "env_options": config.env_options,
-        "overall": _section(eps, tasks, config.runs, k_max, figures, wm),
+        "task_set": task_set_digest(tasks),
+        "overall": _section(eps, tasks, config.runs, k_max, spec, wm),
     }
-    groups = sorted({t.group for t in tasks if t.group})
+    groups = list(dict.fromkeys(t.group for t in tasks if t.group))  # in the environment's order (S, M, L)
     if len(groups) > 1:
         report["groups"] = {
             g: _section([e for e in eps if e.group == g], [t for t in tasks if t.group == g], config.runs, k_max,
-                        figures, wm)
+                        spec, wm)
             for g in groups
         }
     return report
@@ -120,6 +139,16 @@ def report_of(run_dir) -> dict[str, Any]:
     config = read_config(run_dir)
     _, tasks, k_max = resolve(config)
     return build_report(config, tasks, read_records(run_dir), k_max)
+
+
+def mixed_task_sets(reports: Sequence[dict[str, Any]]) -> str | None:
+    """A warning when reports to be compared evaluate different task sets, else None."""
+    if len({r["task_set"] for r in reports}) < 2:
+        return None
+    sizes = {r["overall"]["tasks"] for r in reports}
+    which = (f"n={sizes.pop()} each, other tasks" if len(sizes) == 1
+             else ", ".join(f"{setting(r)}: n={r['overall']['tasks']}" for r in reports))
+    return f"these runs evaluate different task sets ({which}): their rows are not comparable"
 
 
 # -- rendering --------------------------------------------------------------------------
@@ -137,78 +166,161 @@ def _num(m: float | None, s: float | None, digits: int = 2) -> str:
     return f"{m:.{digits}f}" + (f"±{s:.{digits}f}" if s else "")
 
 
+def _count(m: float | None, s: float | None) -> str:
+    """A count: an integer, or the mean over runs with one decimal where it is not one."""
+    if m is None:
+        return "-"
+    return (f"{m:.0f}" if float(m).is_integer() else f"{m:.1f}") + (f"±{s:.1f}" if s else "")
+
+
 def setting(report: dict[str, Any]) -> str:
     """What distinguishes one run directory's rows from another's in a combined table."""
     options = ",".join(f"{k}={v}" for k, v in sorted(report["env_options"].items()))
     return f"{report['model']} {report['format'].upper()}" + (f" {options}" if options else "")
 
 
-def table(reports: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
-    """Header and rows: per report, one row for all tasks, then one per group. Reports of
-    several run directories (same environment) share one table, labelled by their setting."""
+@dataclass(frozen=True)
+class _Columns:
+    """A group of columns that belong together (split tables break only between groups)."""
+
+    headers: list[str]
+    key: list[str]  # what each column is, for the key under the table
+    cells: Callable[[dict[str, Any], dict[str, Any], dict[str, Any]], list[str]]  # (report, mean, std) -> cells
+
+
+def _column_groups(reports: Sequence[dict[str, Any]]) -> list[_Columns]:
     k_max = max(r["max_attempts"] for r in reports)
     means = [r["overall"]["mean"] for r in reports]
     per_runs = [x for r in reports for x in r["overall"]["per_run"]]
-    extra_steps = next((m["success_within_steps"] for m in means if "success_within_steps" in m), None)
-    show_auccess = any("auccess" in m for m in means)
-    show_stars = any("stars" in m for m in means)
-    show_wm = any("wm" in m for m in means)
-    show_errors = any(x["model_errors"] or x["retries"] for x in per_runs)
-    show_cost = any(x["cost_usd"] or x["input_tokens"] for x in per_runs)
-    combined = len(reports) > 1
-    header = (["setting"] if combined else []) + ["group", "n"] + [f"Att.{k}" for k in range(1, k_max + 1)]
-    header += ["AvgAtt", "Solved", "Invalid"]
-    if extra_steps:
-        noun = reports[0].get("step_noun", "step").capitalize()
-        header += [f"{noun}{k}" for k in extra_steps] + [f"Avg{noun}s"]
-    if show_auccess:
-        header.append("AUCCESS")
-    if show_stars:
-        header += ["Stars", "Stars/lvl", "Stars/done", "1*", "2*", "3*"]
-    if show_wm:  # WM predicted outcomes: accuracy, and how often a predicted success failed
-        header += ["PredAcc", "PredS->F"]
-    if show_errors:
-        header += ["ModelErr", "Retries"]
-    if show_cost:
-        header += ["TokensIn", "TokensOut", "Cost$"]
+    out: list[_Columns] = []
+    if k_max > 1:
+        out.append(_Columns(
+            [f"Att.{k}" for k in range(1, k_max + 1)] + ["AvgAtt"],
+            ["Att.k: tasks solved within k attempts (%)", "AvgAtt: attempts used by the solved tasks"],
+            lambda r, m, s: [_pct(m["success_at"][i], s["success_at"][i]) if i < r["max_attempts"] else ""
+                             for i in range(k_max)] + [_num(m["avg_attempts"], s["avg_attempts"])]))
+    else:
+        out.append(_Columns(["Success"], ["Success: tasks solved (%)"],
+                            lambda r, m, s: [_pct(m["success_at"][0], s["success_at"][0])]))
+    checkpoints = next((list(m["success_within_steps"]) for m in means if "success_within_steps" in m), None)
+    if checkpoints:
+        noun = reports[0]["step_noun"]
+        cap = noun.capitalize()
 
-    def row(report: dict[str, Any], name: str, sec: dict[str, Any]) -> list[str]:
-        m, s = sec["mean"], sec["std"]
-        k = report["max_attempts"]
-        cells = ([setting(report)] if combined else []) + [name, str(sec["tasks"])]
-        cells += [_pct(m["success_at"][i], s["success_at"][i]) if i < k else "" for i in range(k_max)]
-        cells += [_num(m["avg_attempts"], s["avg_attempts"]), _num(m["solved"], s["solved"], 1),
-                  _num(m["invalid_attempts"], s["invalid_attempts"], 1)]
-        if extra_steps:
+        def steps(r, m, s):
             within = m.get("success_within_steps", {})
-            cells += [_pct(within[c], s["success_within_steps"][c]) if c in within else "-" for c in extra_steps]
-            cells.append(_num(m.get("avg_steps"), s.get("avg_steps")))
-        if show_auccess:
-            cells.append(_pct(m.get("auccess"), s.get("auccess")))
-        if show_stars:
+            return ([_pct(within[c], s["success_within_steps"][c]) if c in within else "-" for c in checkpoints]
+                    + [_num(m.get("avg_steps"), s.get("avg_steps"))])
+
+        out.append(_Columns([f"{cap}{k}" for k in checkpoints] + [f"Avg{cap}s"],
+                            [f"{cap}k: tasks solved within k {noun}s (%)", f"Avg{cap}s: {noun}s used by the solved tasks"],
+                            steps))
+    auccess = any("auccess" in m for m in means)
+    out.append(_Columns(
+        ["Solved", "Invalid"] + (["AUCCESS"] if auccess else []),
+        ["Solved: tasks solved", "Invalid: attempts that ended on an invalid action"]
+        + (["AUCCESS: PHYRE's area under the success curve, invalid attempts not counted (%)"] if auccess else []),
+        lambda r, m, s: [_count(m["solved"], s["solved"]), _count(m["invalid_attempts"], s["invalid_attempts"])]
+        + ([_pct(m.get("auccess"), s.get("auccess"))] if auccess else [])))
+    if any("stars" in m for m in means):
+        zero = any(x["stars"]["levels_with"].get("0") for x in per_runs if "stars" in x)  # 0-star wins exist
+        counts = (["0"] if zero else []) + ["1", "2", "3"]
+
+        def stars(r, m, s):
             st, sd = m.get("stars"), s.get("stars")
             if st is None:
-                cells += ["-"] * 6
-            else:
-                cells += [_num(st["total"], sd["total"], 1), _num(st["mean_all"], sd["mean_all"]),
-                          _num(st["mean_completed"], sd["mean_completed"])]
-                cells += [_num(st["levels_with"][c], sd["levels_with"][c], 1) for c in ("1", "2", "3")]
-        if show_wm:
-            wm, wsd = m.get("wm"), s.get("wm")
-            cells += (["-", "-"] if wm is None else
-                      [_pct(wm["accuracy"], wsd["accuracy"]), _pct(wm["predicted_success_failed"], wsd["predicted_success_failed"])])
-        if show_errors:
-            cells += [_num(m["model_errors"], s["model_errors"], 1), _num(m["retries"], s["retries"], 1)]
-        if show_cost:
-            cells += [_num(m["input_tokens"], s["input_tokens"], 0), _num(m["output_tokens"], s["output_tokens"], 0),
-                      _num(m["cost_usd"], s["cost_usd"], 4)]
-        return cells
+                return ["-"] * (3 + len(counts))
+            return ([_count(st["total"], sd["total"]), _num(st["mean_all"], sd["mean_all"]),
+                     _num(st["mean_completed"], sd["mean_completed"])]
+                    + [_count(st["levels_with"][c], sd["levels_with"][c]) for c in counts])
 
+        out.append(_Columns(
+            ["Stars", "Stars/lvl", "Stars/won"] + [f"{c}*" for c in counts],
+            ["Stars: stars earned", "Stars/lvl: stars per level", "Stars/won: stars per level won",
+             "n*: levels won with n stars"], stars))
+    if any("wm" in m for m in means):  # WM predicted outcomes: accuracy, and how often a predicted success failed
+        def wm(r, m, s):
+            w, wsd = m.get("wm"), s.get("wm")
+            return ["-", "-"] if w is None else [_pct(w["accuracy"], wsd["accuracy"]),
+                                                 _pct(w["predicted_success_failed"], wsd["predicted_success_failed"])]
+
+        out.append(_Columns(["PredAcc", "PredS->F"],
+                            ["PredAcc: WM outcome predictions that came true (%)",
+                             "PredS->F: predicted successes that failed (%)"], wm))
+    if any(x["model_errors"] or x["retries"] for x in per_runs):
+        out.append(_Columns(["ModelErr", "Retries"],
+                            ["ModelErr: model requests that failed for good", "Retries: model request retries"],
+                            lambda r, m, s: [_count(m["model_errors"], s["model_errors"]),
+                                             _count(m["retries"], s["retries"])]))
+    if any(x["cost_usd"] or x["input_tokens"] for x in per_runs):
+        out.append(_Columns(["TokensIn", "TokensOut", "Cost$"],
+                            ["TokensIn/TokensOut: tokens sent and received", "Cost$: model cost (US dollars)"],
+                            lambda r, m, s: [_num(m["input_tokens"], s["input_tokens"], 0),
+                                             _num(m["output_tokens"], s["output_tokens"], 0),
+                                             _num(m["cost_usd"], s["cost_usd"], 4)]))
+    return out
+
+
+@dataclass
+class _Table:
+    header: list[str]
+    rows: list[list[str]]
+    labels: int  # the first columns label a row (setting, group, n): every block repeats them
+    groups: list[list[int]]  # the other columns' indices, by column group
+    keys: list[str]  # what the columns are
+
+    def blocks(self, width: int) -> list[list[int]]:
+        """Column indices, in order, packed into blocks of at most `width` characters of
+        text, each starting with the label columns. A column group stays in one block
+        unless it is wider than a block on its own; then it is cut into equal parts."""
+        w = [2 + max(len(h), *(len(r[i]) for r in self.rows)) for i, h in enumerate(self.header)]
+        base = sum(w[: self.labels])
+        units = []
+        for g in self.groups:
+            parts = -(-sum(w[c] for c in g) // max(1, width - base))  # ceil: the fewest parts that fit
+            size = -(-len(g) // parts)
+            units += [g[i : i + size] for i in range(0, len(g), size)]
+        blocks: list[list[int]] = []
+        used = width
+        for unit in units:
+            if used + sum(w[c] for c in unit) > width:
+                blocks.append(list(range(self.labels)))
+                used = base
+            blocks[-1] += unit
+            used += sum(w[c] for c in unit)
+        return blocks
+
+    def block(self, columns: list[int]) -> tuple[list[str], list[list[str]]]:
+        return [self.header[c] for c in columns], [[r[c] for c in columns] for r in self.rows]
+
+
+def _table(reports: Sequence[dict[str, Any]]) -> _Table:
+    groups = _column_groups(reports)
+    combined = len(reports) > 1
+    header = (["setting"] if combined else []) + ["group", "n"]
+    labels = len(header)
+    columns = []
+    for g in groups:
+        columns.append(list(range(len(header), len(header) + len(g.headers))))
+        header += g.headers
     rows = []
     for report in reports:
-        rows.append(row(report, "all", report["overall"]))
-        rows += [row(report, g, sec) for g, sec in report.get("groups", {}).items()]
-    return header, rows
+        for name, sec in [("all", report["overall"]), *report.get("groups", {}).items()]:
+            rows.append(([setting(report)] if combined else []) + [name, str(sec["tasks"])]
+                        + [c for g in groups for c in g.cells(report, sec["mean"], sec["std"])])
+    return _Table(header, rows, labels, columns, [k for g in groups for k in g.key])
+
+
+def table(reports: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
+    """Header and rows: per report, one row for all tasks, then one per group. Reports of
+    several run directories (same environment) share one table, labelled by their setting."""
+    t = _table(reports)
+    return t.header, t.rows
+
+
+def table_key(reports: Sequence[dict[str, Any]]) -> str:
+    """What the table's columns are, in one line (shown under every rendering of it)."""
+    return " · ".join([*_table(reports).keys, "values: mean±std over runs; counts per run"])
 
 
 def _as_list(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -217,37 +329,56 @@ def _as_list(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> list[dict[st
 
 def render_text(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
     reports = _as_list(reports)
-    header, rows = table(reports)
-    widths = [max(len(header[i]), *(len(r[i]) for r in rows)) for i in range(len(header))]
-    fmt = lambda cells: "  ".join(c.rjust(w) for c, w in zip(cells, widths))  # noqa: E731
+    t = _table(reports)
     lines = []
     for report in reports:
         done = sum(r["tasks"] - r["unfinished"] for r in report["overall"]["per_run"])
         total = report["overall"]["tasks"] * report["runs"]
-        lines.append(
-            f"{report['env']} · {setting(report)} · {report['runs']} run(s), seed {report['seed']} · "
-            f"episodes complete {done}/{total}"
-        )
-    lines += ["success rate (%) within k attempts, mean±std over runs", fmt(header), fmt(["-" * w for w in widths])]
-    lines += [fmt(r) for r in rows]
+        lines.append(f"{report['title']} · {setting(report)} · {report['runs']} run(s), seed {report['seed']} · "
+                     f"episodes complete {done}/{total}")
+    note = mixed_task_sets(reports)
+    if note:
+        lines.append(f"note: {note}")
+    for columns in t.blocks(TEXT_WIDTH):
+        header, rows = t.block(columns)
+        widths = [max(len(header[i]), *(len(r[i]) for r in rows)) for i in range(len(header))]
+        left = [not all(_is_figure(r[i]) for r in rows) for i in range(len(header))]  # words: left-aligned
+        fmt = lambda cells: "  ".join(c.ljust(w) if lj else c.rjust(w)  # noqa: E731
+                                      for c, w, lj in zip(cells, widths, left)).rstrip()
+        lines += ["", fmt(header), fmt(["-" * w for w in widths]), *(fmt(r) for r in rows)]
+    lines += ["", *_wrap(table_key(reports).split(" · "), TEXT_WIDTH)]
     for report in reports:
         wm = report["overall"]["mean"].get("wm")
         if wm is not None:
             c = wm["confusion"]
             lines += [
-                f"WM predicted outcomes ({setting(report)}): {_num(wm['stated'], None, 1)} of "
-                f"{_num(wm['decisions'], None, 1)} decisions stated one (mean per run); decisions by prediction and result:",
-                f"  predicted success: {_num(c['success']['success'], None, 1)} solved, {_num(c['success']['failure'], None, 1)} failed",
-                f"  predicted failure: {_num(c['failure']['success'], None, 1)} solved, {_num(c['failure']['failure'], None, 1)} failed",
+                f"WM predicted outcomes ({setting(report)}): {_count(wm['stated'], None)} of "
+                f"{_count(wm['decisions'], None)} decisions stated one (mean per run); decisions by prediction and result:",
+                f"  predicted success: {_count(c['success']['success'], None)} solved, "
+                f"{_count(c['success']['failure'], None)} failed",
+                f"  predicted failure: {_count(c['failure']['success'], None)} solved, "
+                f"{_count(c['failure']['failure'], None)} failed",
             ]
     return "\n".join(lines)
 
 
+def _wrap(items: list[str], width: int) -> list[str]:
+    """Items joined by " · " into lines of at most `width` characters, never breaking one."""
+    lines: list[str] = []
+    for item in items:
+        if lines and len(lines[-1]) + 3 + len(item) <= width:
+            lines[-1] += " · " + item
+        else:
+            lines.append(item)
+    return lines
+
+
 def render_markdown(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
-    header, rows = table(_as_list(reports))
+    reports = _as_list(reports)
+    header, rows = table(reports)
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines)
+    return "\n".join([*lines, "", table_key(reports)])
 
 
 def render_csv(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
@@ -260,27 +391,62 @@ def render_csv(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
 
 
 _LATEX_SPECIAL = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
-                  "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}"}
+                  "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
+                  "<": r"\textless{}", ">": r"\textgreater{}", "|": r"\textbar{}"}
+
+
+def latex_escape(text: str) -> str:
+    """Plain text as LaTeX (default OT1 encoding: <, > and | are not text characters there)."""
+    parts = text.split("->")
+    escaped = [("".join(_LATEX_SPECIAL.get(c, c) for c in p)).replace("±", r"$\pm$").replace("★", r"$\star$")
+               for p in parts]
+    return r"$\to$".join(escaped)
 
 
 def _latex_cell(text: str) -> str:
-    escaped = "".join(_LATEX_SPECIAL.get(c, c) for c in text)
-    return escaped.replace("±", r"$\pm$").replace("*", r"$\star$")
+    return latex_escape(text).replace("*", r"$\star$")
+
+
+def _latex_caption(reports: list[dict[str, Any]]) -> str:
+    """Environment, setting(s), runs and seed, and the columns' key."""
+    runs = "/".join(str(r) for r in dict.fromkeys(r["runs"] for r in reports))
+    seeds = "/".join(str(r) for r in dict.fromkeys(r["seed"] for r in reports))
+    who = "; ".join(setting(r) for r in reports)
+    return _latex_cell(f"{reports[0]['title']}: {who}; {runs} run(s), seed {seeds}. {table_key(reports)}.")
 
 
 def render_latex(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
-    """A booktabs `tabular` of the same table (needs \\usepackage{booktabs})."""
-    header, rows = table(_as_list(reports))
-    numeric = [all(_is_figure(r[i]) for r in rows) for i in range(len(header))]
+    """A `table` float: caption (environment, model, format, runs, the columns' key), then
+    the report's table as booktabs `tabular`s, split between column groups where it is
+    wide and stacked in one box, scaled down (all by the same factor) to the line width
+    if it is still wider. Needs `\\usepackage{booktabs}` and `\\usepackage{graphicx}`
+    (LATEX_PREAMBLE)."""
+    reports = _as_list(reports)
+    t = _table(reports)
+    label = re.sub(r"[^a-z0-9]+", "-", " ".join([reports[0]["env"], *(setting(r) for r in reports)]).lower())
     lines = [
-        "% success rate (%) within k attempts, mean $\\pm$ std over runs (deepphy report --latex)",
-        r"\begin{tabular}{" + "".join("r" if n else "l" for n in numeric) + "}",
-        r"\toprule",
-        " & ".join(_latex_cell(h) for h in header) + r" \\",
-        r"\midrule",
+        f"% deepphy report --latex; preamble: {LATEX_PREAMBLE}",
+        r"\begin{table}[htbp]",
+        r"\centering",
+        r"\caption{" + _latex_caption(reports) + "}",
+        r"\label{tab:deepphy-" + label.strip("-") + "}",
+        r"\resizebox{\ifdim\width>\linewidth\linewidth\else\width\fi}{!}{%",
+        r"\begin{tabular}{@{}l@{}}",
     ]
-    lines += [" & ".join(_latex_cell(c) for c in r) + r" \\" for r in rows]
-    lines += [r"\bottomrule", r"\end{tabular}"]
+    for n, columns in enumerate(t.blocks(LATEX_WIDTH)):
+        header, rows = t.block(columns)
+        numeric = [all(_is_figure(r[i]) for r in rows) for i in range(len(header))]
+        lines += [
+            *([r"\\ \noalign{\vskip 2ex}"] if n else []),  # \\[2ex] would not add to a row this deep
+            r"\begin{tabular}{" + "".join("r" if x else "l" for x in numeric) + "}",
+            r"\toprule",
+            " & ".join(_latex_cell(h) for h in header) + r" \\",
+            r"\midrule",
+            *(" & ".join(_latex_cell(c) for c in r) + r" \\" for r in rows),
+            r"\bottomrule",
+            r"\end{tabular}",
+        ]
+    lines += [r"\end{tabular}}", r"\end{table}"]
     return "\n".join(lines)
 
 

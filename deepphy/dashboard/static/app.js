@@ -4,11 +4,9 @@
 // computes it with the report code of `deepphy report`.
 "use strict";
 
-const PALETTE = ["#2563eb", "#dc2626", "#16a34a", "#9333ea", "#ea580c", "#0891b2", "#ca8a04", "#db2777"];
-const CHART_KINDS = {
-  attempts: { title: "Success rate within k attempts", x: "attempt k" },
-  decisions: { title: "Success rate within k decisions (one attempt)", x: "decision k" },
-};
+// Run colours: none of them is a status colour of the cards and the grid (solved green,
+// failed red, in-progress blue, pending grey), so a run's line never reads as a status.
+const PALETTE = ["#7c3aed", "#ea580c", "#0e7490", "#c026d3", "#854d0e", "#4338ca", "#be185d", "#475569"];
 
 const S = {
   runs: new Map(),     // id -> view
@@ -125,7 +123,9 @@ function renderCard(v) {
     style: { "--run-color": colorOf(v.id) },
     onclick: () => { if (v.report) selectRun(v.id); },
   },
-  el("h3", {}, el("span", { text: `${v.env} · ${v.label}` }), el("span", { class: "badge " + p.status, "data-field": "status", text: p.status + (p.loading ? " (loading)" : "") })),
+  el("h3", {}, el("span", { text: `${v.title || v.env} · ${v.label}` }),
+    el("span", { class: "badge " + p.status, "data-field": "status", "data-phase": p.phase || "",
+      text: (p.status === "running" && p.phase && p.phase !== "running" ? p.phase : p.status) + (p.loading ? " (loading)" : "") })),
   el("div", { class: "path", text: v.path || v.name }),
   el("div", { class: "bar" }, el("div", { style: { width: (100 * frac).toFixed(1) + "%" } })),
   el("dl", { class: "kv" },
@@ -158,7 +158,7 @@ function field(name, text, key, value) {
 function renderSelect() {
   const sel = document.getElementById("run-select");
   sel.replaceChildren(...[...S.runs.values()].filter((v) => v.report).map((v) =>
-    el("option", { value: v.id, selected: v.id === S.selected, text: `${v.env} · ${v.label} · ${v.name}` })));
+    el("option", { value: v.id, selected: v.id === S.selected, text: `${v.title || v.env} · ${v.label} · ${v.name}` })));
   const v = S.runs.get(S.selected);
   const groups = document.getElementById("group-select");
   groups.replaceChildren(el("option", { value: "", text: "all" }),
@@ -169,24 +169,33 @@ function renderTable() {
   const box = document.getElementById("table");
   const v = S.runs.get(S.selected);
   if (!v || !v.table) { box.replaceChildren(); return; }
-  const { header, rows } = v.table;
+  const { header, rows, key } = v.table;
   box.replaceChildren(el("table", { class: "report", "data-run": v.id },
     el("thead", {}, el("tr", {}, header.map((h) => el("th", { text: h })))),
-    el("tbody", {}, rows.map((r) => el("tr", {}, r.map((c) => el("td", { text: c })))))));
+    el("tbody", {}, rows.map((r) => el("tr", {}, r.map((c) => el("td", { text: c })))))),
+    key ? el("p", { class: "table-key muted small", text: key }) : null);
 }
 
 // -- charts (inline SVG) ---------------------------------------------------------------
 
+// One success chart per environment (its own x axis: attempts 1..K, or decisions 1..max),
+// and one stars chart per game.
 function renderCharts() {
   const box = document.getElementById("charts");
-  const views = [...S.runs.values()];
+  const views = [...S.runs.values()].filter((v) => v.curve);
   const charts = [];
-  for (const [kind, spec] of Object.entries(CHART_KINDS)) {
-    const series = views.filter((v) => v.curve && v.curve.kind === kind);
-    if (series.length) charts.push(lineChart(kind, spec, series));
+  for (const env of new Set(views.map((v) => v.env))) {
+    const series = views.filter((v) => v.env === env);
+    const title = series[0].title || env;
+    for (const kind of ["attempts", "decisions"]) {
+      const of = series.filter((v) => v.curve.kind === kind);
+      if (!of.length) continue;
+      const noun = kind === "attempts" ? "attempt" : of[0].curve.noun || "decision";
+      charts.push(lineChart(`${kind}-${env}`, { title: `${title}: success rate within k ${noun}s`, x: `${noun} k`, env }, of));
+    }
+    const starred = series.filter((v) => v.stars);
+    if (starred.length) charts.push(starChart(starred, title, env));
   }
-  const starred = views.filter((v) => v.stars);
-  if (starred.length) charts.push(starChart(starred));
   if (!charts.length) charts.push(el("p", { class: "muted", text: "no records yet" }));
   box.replaceChildren(...charts);
 }
@@ -207,9 +216,9 @@ function lineChart(kind, spec, series) {
     svg.append(el("line", { class: "gridline", x1: L, x2: W - R, y1: Y(y), y2: Y(y) }),
       el("text", { x: L - 6, y: Y(y) + 4, "text-anchor": "end", text: Math.round(100 * y) + "%" }));
   }
-  const ticks = [...new Set(xs)].sort((a, b) => a - b);
-  const step = Math.ceil(ticks.length / 16);
-  ticks.forEach((x, i) => { if (i % step === 0) svg.append(el("text", { x: X(x), y: H - B + 16, "text-anchor": "middle", text: x })); });
+  // x ticks: every attempt/decision (the curves have a point at each), thinned to at most 16
+  const step = Math.ceil((x1 - x0 + 1) / 16);
+  for (let x = x0; x <= x1; x += step) svg.append(el("text", { x: X(x), y: H - B + 16, "text-anchor": "middle", text: x }));
   svg.append(el("line", { class: "axis", x1: L, x2: W - R, y1: Y(0), y2: Y(0) }),
     el("line", { class: "axis", x1: L, x2: L, y1: T, y2: Y(0) }),
     el("text", { x: (L + W - R) / 2, y: H - 6, "text-anchor": "middle", text: spec.x }));
@@ -226,46 +235,51 @@ function lineChart(kind, spec, series) {
     }, el("title", { text: `${v.label} (${v.name}): ${spec.x.split(" ")[0]} ${x}: ${pct(c.mean[i])} ± ${pct(c.std[i])}` }))));
     svg.append(g);
   }
-  return el("div", { class: "chart", "data-kind": kind }, el("h3", { text: spec.title }), svg, legend(series));
+  return el("div", { class: "chart", "data-kind": kind, "data-env": spec.env }, el("h3", { text: spec.title }), svg, legend(series));
 }
 
 function legend(series) {
   return el("div", { class: "chart-legend" }, series.map((v) => el("span", {
     class: S.hidden.has(v.id) ? "off" : "", "data-run": v.id, title: v.path,
     onclick: () => { S.hidden.has(v.id) ? S.hidden.delete(v.id) : S.hidden.add(v.id); renderCharts(); },
-  }, el("i", { style: { background: colorOf(v.id) } }), `${v.env} · ${v.label} · ${v.name}`)));
+  }, el("i", { style: { background: colorOf(v.id) } }), `${v.title || v.env} · ${v.label} · ${v.name}`)));
 }
 
-function starChart(series) {
-  const W = 560, H = 300, L = 46, R = 14, T = 12, B = 40;
+// Levels won with 0, 1, 2 and 3 stars (a level can be won without a star), stacked light
+// to dark, one bar per run.
+const STAR_COUNTS = ["0", "1", "2", "3"];
+
+function starChart(series, title, env) {
+  const W = 560, H = 300, L = 46, R = 14, T = 22, B = 40;
   const shown = series.filter((v) => !S.hidden.has(v.id));
-  const levels = shown.map((v) => ["1", "2", "3"].reduce((a, k) => a + (v.stars.levels_with[k] || 0), 0));
-  const ymax = Math.max(1, ...levels);
+  const levels = shown.map((v) => STAR_COUNTS.reduce((a, k) => a + (v.stars.levels_with[k] || 0), 0));
+  const step = Math.max(1, Math.ceil(Math.max(1, ...levels) / 5));
+  const ymax = step * Math.ceil(Math.max(1, ...levels) / step);  // a round top: the last tick is the axis' end
   const Y = (y) => T + (1 - y / ymax) * (H - T - B);
   const bw = Math.min(70, (W - L - R) / Math.max(1, shown.length) - 16);
   const svg = el("svg", { width: W, height: H, viewBox: `0 0 ${W} ${H}`, "data-kind": "stars" });
-  const step = Math.max(1, Math.ceil(ymax / 5));
   for (let y = 0; y <= ymax; y += step) {
     svg.append(el("line", { class: "gridline", x1: L, x2: W - R, y1: Y(y), y2: Y(y) }),
       el("text", { x: L - 6, y: Y(y) + 4, "text-anchor": "end", text: y }));
   }
   svg.append(el("line", { class: "axis", x1: L, x2: W - R, y1: Y(0), y2: Y(0) }),
     el("line", { class: "axis", x1: L, x2: L, y1: T, y2: Y(0) }),
-    el("text", { x: 4, y: T + 4, text: "levels" }));
+    el("text", { x: L, y: 11, "text-anchor": "middle", text: "levels won" }));
   shown.forEach((v, i) => {
     const x = L + 12 + i * (bw + 16);
     let base = 0;
     const g = el("g", { "data-run": v.id });
-    ["1", "2", "3"].forEach((k, j) => {
+    STAR_COUNTS.forEach((k, j) => {
       const n = v.stars.levels_with[k] || 0;
-      g.append(el("rect", { x, y: Y(base + n), width: bw, height: Y(base) - Y(base + n), fill: colorOf(v.id), "fill-opacity": 0.35 + 0.3 * j, "data-stars": k, "data-value": n },
-        el("title", { text: `${v.label}: ${num(n, 1)} levels with ${k} star(s) (mean over runs)` })));
+      g.append(el("rect", { x, y: Y(base + n), width: bw, height: Y(base) - Y(base + n), fill: colorOf(v.id), "fill-opacity": 0.2 + 0.25 * j, "data-stars": k, "data-value": n },
+        el("title", { text: `${v.label}: ${num(n, 1)} levels won with ${k} star(s) (mean over runs)` })));
       base += n;
     });
     g.append(el("text", { x: x + bw / 2, y: H - B + 16, "text-anchor": "middle", text: `${num(v.stars.mean_all, 2)} ★/level` }));
     svg.append(g);
   });
-  return el("div", { class: "chart", "data-kind": "stars" }, el("h3", { text: "Stars: levels finished with 1, 2, 3 stars (light to dark)" }), svg, legend(series));
+  return el("div", { class: "chart", "data-kind": "stars", "data-env": env },
+    el("h3", { text: `${title}: levels won with 0, 1, 2, 3 stars (light to dark)` }), svg, legend(series));
 }
 
 // -- task grid -------------------------------------------------------------------------
@@ -444,7 +458,7 @@ function messageNode(ep, m, standIn) {
 function figure(runId, path, caption) {
   const url = `/files/${runId}/` + path.split("/").map(encodeURIComponent).join("/");
   return el("figure", {}, el("a", { href: url, target: "_blank" },
-    el("img", { src: url, alt: caption, loading: "lazy" })), el("figcaption", { text: caption }));
+    el("img", { src: url, alt: caption })), el("figcaption", { text: caption }));  // eager: a screenshot or print shows them
 }
 
 function closeEpisode() {

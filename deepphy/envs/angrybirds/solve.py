@@ -205,7 +205,8 @@ def print_report(rows: list[dict]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="deepphy solve --env angrybirds", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="deepphy solve --env angrybirds", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     rep = sub.add_parser("report", help="replay the stored plans; print the solvability report")
     rep.add_argument("--levels", help="comma-separated level ids (default: all)")

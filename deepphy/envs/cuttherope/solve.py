@@ -155,17 +155,20 @@ def report(ids: list[str]) -> dict:
 
 
 def print_report(data: dict) -> None:
-    print(f"{'box':>4} {'levels':>6} {'proven':>6} {'plan stars':>10} {'best stars':>10} {'3-star':>6} "
-          f"{'actions':>7} {'random wins':>11}")
+    # one word per column: plan_stars / best_stars = stars of the stored plans / the best the search found
+    # (summed over the box), 3star_levels = levels with a 3-star plan, plan_actions = mean actions of a
+    # stored plan, random_wins = the reference random agent's win rate
+    print(f"{'box':>4} {'levels':>6} {'proven':>6} {'plan_stars':>10} {'best_stars':>10} {'3star_levels':>12} "
+          f"{'plan_actions':>12} {'random_wins':>11}")
     total = {"levels": 0, "proven": 0, "plan_stars": 0, "best_stars": 0, "three_star_levels": 0}
     for box, b in data["boxes"].items():
         rate = "-" if b["reference_win_rate"] is None else f"{100 * b['reference_win_rate']:.1f}%"
         print(f"{box:>4} {b['levels']:>6} {b['proven']:>6} {b['plan_stars']:>10} {b['best_stars']:>10} "
-              f"{b['three_star_levels']:>6} {b['mean_actions']:>7.1f} {rate:>11}")
+              f"{b['three_star_levels']:>12} {b['mean_actions']:>12.1f} {rate:>11}")
         for k in total:
             total[k] += b[k]
     print(f"{'all':>4} {total['levels']:>6} {total['proven']:>6} {total['plan_stars']:>10} {total['best_stars']:>10} "
-          f"{total['three_star_levels']:>6}")
+          f"{total['three_star_levels']:>12}")
     failed = [r for r in data["levels"] if not r["proven"]]
     for r in failed:
         print(f"NOT PROVEN: {r['level']}: {r['outcome']}")
@@ -212,7 +215,8 @@ def run_search(ids: list[str], nodes: int, jobs: int, write: bool) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="deepphy solve --env cuttherope", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="deepphy solve --env cuttherope", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     rep = sub.add_parser("report", help="replay every stored plan; print the solvability report")
     rep.add_argument("--levels", help="comma-separated level ids (default: all 88)")

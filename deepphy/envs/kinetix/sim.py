@@ -33,6 +33,7 @@ Cost control:
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
 import pickle
 import tempfile
@@ -55,6 +56,12 @@ NUM_THRUSTER_BINDINGS = 2
 
 _lock = threading.RLock()
 _configured = False
+
+
+# grain (imported by kinetix's level loading) warns through absl, at import, that this jaxlib
+# is too old for its multiprocess worker profiling, which nothing here uses: `deepphy show`
+# printed it. Only that message is dropped.
+logging.getLogger("absl").addFilter(lambda record: not record.getMessage().startswith("Grain multiprocess"))
 
 
 def cache_root() -> Path:

@@ -6,10 +6,11 @@
 For every distinct PHYRE task of the selected set: simulate every action of the grid
 (grid5: 5 x 5 cells x 5 radii = 125), count the invalid and the solving ones; with
 `--continuous N`, tasks no grid action solves get up to N random valid continuous actions
-(seeded by the task id) until one solves. Writes a JSON report (per task, per setup and
-template, overall) and prints the summary. The expected success of a uniformly random
-grid agent within 10 attempts (invalid attempts counted, with and without repeats) follows
-exactly from the per-task counts.
+(seeded by the task id) until one solves. Prints the summary; with `--json FILE`, also
+writes the JSON report there (per task, per setup and template, overall); nothing is
+written by default. The expected success of a uniformly random grid agent within 10
+attempts (invalid attempts counted, with and without repeats) follows exactly from the
+per-task counts.
 
 `main(argv)` is the entry point (wired to `deepphy solve --env phyre`).
 """
@@ -107,7 +108,7 @@ def _summary(rows: list[dict], n_actions: int) -> dict:
     }
 
 
-def report(out: Path, options: PhyreOptions, jobs: int, budget: int, limit: int | None) -> dict:
+def report(out: Path | None, options: PhyreOptions, jobs: int, budget: int, limit: int | None) -> dict:
     space = SPACES[options.actions]
     if not isinstance(space, PhyreSpace):
         raise SystemExit("solve: --actions must be a grid (grid5 or grid8)")
@@ -136,8 +137,9 @@ def report(out: Path, options: PhyreOptions, jobs: int, budget: int, limit: int 
                         for tpl in sorted({r["template"] for r in in_group})}
         summary["by_setup"][group] = {**_summary(in_group, n_actions), "by_template": per_template}
     result = {"summary": summary, "actions": [space.format(a) for a in space.all_actions()], "tasks": rows}
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=1) + "\n")
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(result, indent=1) + "\n")
     return result
 
 
@@ -146,8 +148,7 @@ def main(argv: list[str] | None = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     rep = sub.add_parser("report", help="solvability of the evaluation set by the grid actions")
-    rep.add_argument("--json", "--out", dest="json", default="phyre_solvability.json",
-                     help="where to write the JSON report (default %(default)s)")
+    rep.add_argument("--json", "--out", dest="json", metavar="FILE", help="also write the report as JSON to this file")
     rep.add_argument("--setup", default="both", choices=["within", "cross", "both"])
     rep.add_argument("--fold", type=int, default=0)
     rep.add_argument("--split", default="test", choices=["train", "dev", "test"])
@@ -158,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     rep.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 2) - 1))
     args = parser.parse_args(argv)
     options = PhyreOptions(setup=args.setup, fold=args.fold, split=args.split, actions=args.actions)
-    s = report(Path(args.json), options, args.jobs, args.continuous, args.limit)["summary"]
+    s = report(Path(args.json) if args.json else None, options, args.jobs, args.continuous, args.limit)["summary"]
     print(f"{s['tasks']} tasks ({s['setup']}, fold {s['fold']}, {s['split']}); {s['grid']}; "
           f"solvable on the grid: {s['solvable_on_grid']} ({100 * s['fraction_solvable_on_grid']:.1f}%); "
           f"invalid grid actions {100 * s['fraction_of_grid_actions_invalid']:.1f}%; random agent within "
@@ -168,7 +169,8 @@ def main(argv: list[str] | None = None) -> int:
     for group, g in s["by_setup"].items():
         templates = ", ".join(f"{tpl} {v['solvable_on_grid']}/{v['tasks']}" for tpl, v in g["by_template"].items())
         print(f"  {group}: {g['solvable_on_grid']}/{g['tasks']} solvable on the grid; per template: {templates}")
-    print(f"wrote {args.json}")
+    if args.json:
+        print(f"wrote {args.json}")
     return 0
 
 
