@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -277,7 +278,6 @@ def cmd_watch(args: argparse.Namespace) -> int:
 
 def cmd_dashboard(args: argparse.Namespace) -> int:
     import asyncio
-    import os
     import secrets
 
     from deepphy.dashboard.server import TOKEN_ENV, Dashboard, is_loopback, serve
@@ -388,6 +388,25 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("deepphy: interrupted; run the same command again to resume", file=sys.stderr)
         return 130
+    except Exception as e:  # noqa: BLE001 - a bug: one line here, the whole traceback in a file
+        return _crashed(e)
+
+
+def _crashed(error: Exception) -> int:
+    import tempfile
+    import traceback
+
+    text = "".join(traceback.format_exception(error))
+    try:
+        fd, path = tempfile.mkstemp(prefix="deepphy-error-", suffix=".txt")
+        with os.fdopen(fd, "w") as f:
+            f.write(f"deepphy {' '.join(sys.argv[1:])}\n{text}")
+        where = f"the traceback is in {path}"
+    except OSError:
+        where = "no file could be written for the traceback"
+    message = _one_line(str(error))[:300] or "(no message)"
+    print(f"deepphy: error: unexpected {type(error).__name__}: {message} ({where}; please report it)", file=sys.stderr)
+    return 1
 
 
 def _one_line(text: str) -> str:

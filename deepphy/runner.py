@@ -257,13 +257,13 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             worker = make_model_worker(config.model, spec, name=f"{prefix}/model", models_file=runtime.models_file,
                                        max_concurrency=max(1000, runtime.max_in_flight))
             probe = (store.path / CONFIG).resolve()
-            seen = ray.get(worker.read_file.remote(str(probe)), timeout=RAY_TIMEOUT_S)
+            seen = _started(worker.read_file.remote(str(probe)), "the model worker", runtime)
             shares_files = seen == probe.read_bytes()
             model, model_actors = WorkerModel(worker, shares_files), [worker]
         metrics = make_metrics_actor(total, k_max, name=f"{prefix}/metrics", run={
             "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})
         actors = [*env_workers, *model_actors, metrics, *([limiter] if limiter is not None else [])]
-        ray.get(metrics.add.remote([r.summary() for r in existing], resumed=True), timeout=RAY_TIMEOUT_S)
+        _started(metrics.add.remote([r.summary() for r in existing], resumed=True), "the metrics actor", runtime)
         if view:
             view.stop()
             view = None
@@ -297,6 +297,18 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             except Exception:  # noqa: BLE001 - already gone
                 pass
         _stop_ray(started_ray)
+
+
+def _started(ref: Any, what: str, runtime: RuntimeOptions) -> Any:
+    """The result of an actor's first call: its process must start first, which takes long on
+    a busy machine (bounded like an environment step); one line if it never does."""
+    import ray
+
+    try:
+        return ray.get(ref, timeout=runtime.step_timeout_s)
+    except ray.exceptions.GetTimeoutError:
+        raise ClusterUnavailable(f"{what} did not start within {runtime.step_timeout_s:g} s (an overloaded "
+                                 "machine, or no room on the cluster); run the same command again to resume") from None
 
 
 def _episodes_done(records, tasks: list[Task], runs: int, k_max: int) -> int:
@@ -378,8 +390,13 @@ async def _drive(scheduler, existing, env_workers, metrics, runtime: RuntimeOpti
     phase = ["preparing workers (compiling kernels on first use)"]
     view = asyncio.ensure_future(_progress(scheduler, metrics, phase, stream)) if runtime.progress else None
     try:
-        await asyncio.wait_for(asyncio.gather(*(w.warm_up.remote(scheduler.tasks) for w in env_workers)),
-                               timeout=runtime.step_timeout_s)
+        try:
+            await asyncio.wait_for(asyncio.gather(*(w.warm_up.remote(scheduler.tasks) for w in env_workers)),
+                                   timeout=runtime.step_timeout_s)
+        except asyncio.TimeoutError:
+            raise ClusterUnavailable(f"the environment workers did not start within {runtime.step_timeout_s:g} s "
+                                     "(an overloaded machine, or no room on the cluster for them); run the same "
+                                     "command again to resume") from None
         phase[0] = "running"
         await scheduler.run(existing)
     finally:

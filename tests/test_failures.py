@@ -335,3 +335,88 @@ def test_the_rate_limit_benchmark_leaves_no_model_server(how):
     finally:
         if bench.poll() is None:
             bench.kill()
+
+
+# -- a busy machine ---------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_four_local_runs_started_at_once_all_complete(tmp_path):
+    """Each starts its own local Ray on this host at the same moment (they used to collide
+    on the dashboard agent's fixed port, and to time out while the agents started)."""
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    runs = [subprocess.Popen([sys.executable, "-m", "deepphy.cli", "run", "--tasks", "support,hinder", "--runs", "1",
+                              "--seed", str(i), "--no-progress", "--out", str(tmp_path / f"run{i}")],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env) for i in range(4)]
+    try:
+        results = [(p.pid, *p.communicate(timeout=1500), p.returncode) for p in runs]
+    finally:
+        for p in runs:
+            if p.poll() is None:
+                p.kill()
+    for pid, out, err, rc in results:
+        assert rc == 0 and "(2/2 episodes complete" in out, err[-3000:]
+    time.sleep(3)
+    assert not [name for pid, *_ in results for s in sessions_of(pid) for name in _session_processes(Path(s))]
+
+
+@pytest.mark.slow
+def test_a_run_on_saturated_cores_starts_or_fails_with_one_line(tmp_path):
+    """Both cores busy with a loop each (at the run's own priority): the run completes, or
+    ends with one line that says why; never a traceback."""
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    loops = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
+    try:
+        done = cli("run", "--tasks", "support,hinder", "--runs", "1", "--out", str(tmp_path / "run"), timeout=1500)
+    finally:
+        for loop in loops:
+            loop.kill()
+            loop.wait()
+    if done.returncode == 0:
+        assert "(2/2 episodes complete" in done.stdout
+    else:
+        one_error_line(done)
+    assert done.stderr.splitlines()[0] == "starting Ray (local, 2 CPUs) ..."
+
+
+@pytest.mark.slow
+def test_kill_9_while_ray_starts_leaves_no_ray_process(tmp_path):
+    """Killed while Ray's agents are starting (the watchdog used to start only after Ray)."""
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    driver = subprocess.Popen([sys.executable, "-m", "deepphy.cli", "run", "--tasks", "support", "--runs", "1",
+                               "--out", str(tmp_path / "run")],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+    seen: dict[int, psutil.Process] = {}
+    try:
+        deadline = time.time() + 300
+        while time.time() < deadline and driver.poll() is None:
+            for p in psutil.Process(driver.pid).children(recursive=True):
+                seen.setdefault(p.pid, p)
+            try:
+                names = " ".join(" ".join(p.cmdline()) for p in seen.values() if p.is_running())
+            except psutil.Error:
+                continue
+            if "dashboard/agent.py" in names or "DashboardAgent" in names:
+                break
+            time.sleep(0.02)
+        assert driver.poll() is None, "the run ended before Ray's agents started"
+        assert not (tmp_path / "run" / ATTEMPTS).exists() or not (tmp_path / "run" / ATTEMPTS).read_bytes()
+        driver.kill()
+        driver.wait(timeout=30)
+    finally:
+        if driver.poll() is None:
+            driver.kill()
+    ray_family = {pid: p for pid, p in seen.items() if "deepphy.reaper" not in " ".join(_cmdline(p))}
+    deadline = time.time() + 20
+    alive = list(ray_family.values())
+    while alive and time.time() < deadline:
+        time.sleep(0.5)
+        alive = [p for p in alive if p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
+    assert not alive, f"left behind: {[_cmdline(p)[:2] for p in alive]}"
+
+
+def _cmdline(p: psutil.Process) -> list[str]:
+    try:
+        return p.cmdline()
+    except psutil.Error:
+        return []
