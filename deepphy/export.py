@@ -21,7 +21,7 @@ import pyarrow.parquet as pq
 
 from deepphy.runs.records import AttemptRecord, KeyFrame
 from deepphy.runs.store import (
-    FRAMES, PROMPTS, RunDirError, check, inside, is_stored_prompt, read_config, read_records,
+    FRAMES, PROMPTS, RunDirError, check_records, inside, is_stored_prompt, read_config, read_records,
 )
 
 DATA_FILE = "data/decisions.parquet"
@@ -165,7 +165,7 @@ def rows_of(run_dir: Path, source: str, staging: Path) -> tuple[list[dict[str, A
     prompts: dict[str, Any] = {}
     rows = []
     records = read_records(run_dir)
-    check(run_dir, records, resolve(read_config(run_dir))[2], frames=False)  # no duplicated attempts
+    check_records(run_dir, records, resolve(read_config(run_dir))[2], frames=False)  # no duplicated attempts
     records.sort(key=lambda r: (r.task, r.run, r.attempt))
     for r in records:
         for i, s in enumerate(r.steps):

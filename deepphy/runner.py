@@ -21,8 +21,7 @@ from deepphy.agents import endpoint_config, make_agent
 from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.metrics import figures as F
 from deepphy.metrics.live import format_progress
-from deepphy.runs.store import CONFIG, RunStore, read_records
-from deepphy.runs.store import check as check_records
+from deepphy.runs.store import CONFIG, RunStore, check_records, read_records
 
 RAY_TIMEOUT_S = 60.0
 # Ray takes 127.0.0.1 as "no address given" and advertises the machine's primary interface;
@@ -283,7 +282,7 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
     finally:
         if view:
             view.stop()
-        store.close()
+        store.discard()  # closes; removes a directory this run made and recorded nothing in
         # A model worker closes its connections itself, or its client complains as it dies.
         try:
             closing = [worker.close.remote() for worker in model_actors]

@@ -19,7 +19,7 @@ import pytest
 import yaml
 
 from dashboard_support import IPHYRE_TASKS, copy_run, mock_run
-from deepphy.local_ray import sessions_of, temp_root
+from deepphy.local_ray import sessions_of
 from deepphy.runs.store import ATTEMPTS, read_records
 
 # Ray workers inherit the environment of the process that starts Ray (the session fixture):
@@ -233,7 +233,10 @@ def test_checks_that_need_no_ray_fail_before_ray_starts(tmp_path_factory, tmp_pa
     gap = tmp_path / "gap"
     copy_run(reference, gap, lines=0)
     lines = (reference / ATTEMPTS).read_bytes().splitlines(keepends=True)
-    (gap / ATTEMPTS).write_bytes(b"".join(lines[:2] + lines[3:]))
+    records = read_records(reference)  # the lines' order depends on timing: find an attempt 1 with a second
+    first = next(i for i, r in enumerate(records) if r.attempt == 1 and any(
+        (x.task, x.run, x.attempt) == (r.task, r.run, 2) for x in records))
+    (gap / ATTEMPTS).write_bytes(b"".join(lines[:first] + lines[first + 1:]))
     cases = {
         "is not empty and holds no run": ["--out", str(tmp_path / "mine")],
         "holds a run with a different config": ["--out", str(reference), "--seed", "4"],

@@ -95,7 +95,7 @@ import os  # noqa: E402
 
 from deepphy.runs.records import KeyFrame  # noqa: E402
 from deepphy.runs.store import (  # noqa: E402
-    RunWriteError, check, inside, problems, repair,
+    check_records, inside, problems, repair,
 )
 
 PNG = bytes.fromhex("89504e470d0a1a0a") + b"\0" * 40
@@ -161,11 +161,11 @@ def test_a_history_frame_that_leads_out_of_the_run_is_refused_on_resume(tmp_path
     frame.symlink_to(secret)
     records = read_records(tmp_path / "run")
     with pytest.raises(RunDirError) as e:
-        check(tmp_path / "run", records, k_max=10)
+        check_records(tmp_path / "run", records, k_max=10)
     assert ("the key frame frames/support/r0_a2_s1_outcome.png of task support run 0 attempt 2 leads out of the "
             "run directory") in str(e.value) and "deepphy repair" in str(e.value)
     # a finished episode's history is never shown again: its frames do not block a resume
-    check(tmp_path / "run", records, k_max=3)
+    check_records(tmp_path / "run", records, k_max=3)
 
 
 def test_a_symlinked_frames_directory_is_refused_before_anything_is_written(tmp_path):
@@ -184,7 +184,7 @@ def test_a_missing_frame_is_reported_with_the_fix(tmp_path):
         episode(store)
     (tmp_path / "frames" / "support" / "r0_a3_s1_outcome.png").unlink()
     with pytest.raises(RunDirError) as e:
-        check(tmp_path, read_records(tmp_path), k_max=10)
+        check_records(tmp_path, read_records(tmp_path), k_max=10)
     assert "frames/support/r0_a3_s1_outcome.png of task support run 0 attempt 3 is missing; restore it, or run " \
            f"`deepphy repair {tmp_path}`" in str(e.value)
 
@@ -198,7 +198,7 @@ def test_a_gap_in_the_attempts_is_an_error_and_repair_keeps_the_attempts_before_
     (tmp_path / ATTEMPTS).write_bytes(b"".join(lines))
     records = read_records(tmp_path)
     with pytest.raises(RunDirError) as e:
-        check(tmp_path, records, k_max=10)
+        check_records(tmp_path, records, k_max=10)
     assert "task support run 0 has attempts 1, 2, 3, 5, 6: attempt 4 is missing" in str(e.value)
     done = repair(tmp_path, k_max=10)
     assert done.dropped_lines == 2 and [(p.task, p.attempt) for p in done.episodes] == [("support", 4)]
@@ -206,7 +206,7 @@ def test_a_gap_in_the_attempts_is_an_error_and_repair_keeps_the_attempts_before_
     kept = read_records(tmp_path)
     assert sorted((r.task, r.attempt) for r in kept) == [("hinder", 1), ("hinder", 2), ("support", 1),
                                                            ("support", 2), ("support", 3)]
-    check(tmp_path, kept, k_max=10)
+    check_records(tmp_path, kept, k_max=10)
     assert repair(tmp_path, k_max=10).dropped_lines == 0
 
 

@@ -45,7 +45,10 @@ class Dashboard:
         self._unreadable: set[Path] = set()
         self.address = address
         self.poll_s = poll_s
-        self.views: dict[str, dict[str, Any]] = {}  # latest view per run, in the order runs were added
+        self.views: dict[str, dict[str, Any]] = {}  # latest view per run
+        # Runs load side by side, so their first views arrive in any order; each view carries
+        # the place of its run (as given, then as found) and the page keeps that order.
+        self._order: dict[str, int] = {}
         self.live_only: dict[str, dict[str, Any]] = {}  # Ray run id -> view, when its directory is not readable
         self.clients: set[asyncio.Queue] = set()
         # Each run has a thread of its own (RunSource is not thread-safe, and a huge or broken
@@ -60,7 +63,13 @@ class Dashboard:
         for source in sources:
             self._add(source)
 
+    def _place(self, view: dict[str, Any]) -> dict[str, Any]:
+        view["order"] = self._order.setdefault(view["id"], len(self._order))
+        self.views[view["id"]] = view
+        return view
+
     def _add(self, source: RunSource) -> None:
+        self._order.setdefault(source.id, len(self._order))
         self.sources[source.id] = source
         self._threads[source.id] = ThreadPoolExecutor(1, thread_name_prefix=f"dashboard-{source.id}")
         if self._started:
@@ -130,7 +139,7 @@ class Dashboard:
         cells = [] if reset else await self._call(source, source.cells, keys)
         self._pending[source.id] = set()
         self._sent_at[source.id] = time.monotonic()
-        self.views[source.id] = view
+        self._place(view)
         self._broadcast({"type": "run", "run": view, "cells": cells, "grid_reset": reset})
 
     async def _scan_roots(self) -> None:
@@ -154,7 +163,7 @@ class Dashboard:
                 del self.views[waiting]
                 removed = True
             elif not found and waiting not in self.views:
-                self.views[waiting] = waiting_view(waiting, root)
+                self._place(waiting_view(waiting, root))
                 self._broadcast({"type": "run", "run": self.views[waiting], "cells": [], "grid_reset": False})
         if removed:  # pages drop the placeholder by taking the whole state again
             data = sse("state", self.state())
@@ -193,7 +202,7 @@ class Dashboard:
                 self.live_only.pop(ray_id, None)
             else:
                 view = live_only_view(ray_id, snap)
-                self.live_only[ray_id] = self.views[view["id"]] = view
+                self.live_only[ray_id] = self._place(view)
                 self._broadcast({"type": "run", "run": view, "cells": [], "grid_reset": False})
         for source in self.sources.values():
             if source.id not in found:
@@ -215,7 +224,7 @@ class Dashboard:
     # -- HTTP ---------------------------------------------------------------------------
 
     def state(self) -> dict[str, Any]:
-        return {"runs": list(self.views.values()), "address": self.address}
+        return {"runs": sorted(self.views.values(), key=lambda v: v["order"]), "address": self.address}
 
     async def index(self, request: web.Request) -> web.StreamResponse:
         return web.FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-cache"})

@@ -87,7 +87,7 @@ class RunStore:
         self._prompts: set[str] = set()
         self._task_dirs: set[str] = set()  # frames/<task> directories known to be inside the run
         self.created = False  # this store made the directory (discard() may remove it)
-        self.appended = 0
+        self.appended = 0  # records and errors written
 
     # -- opening ----------------------------------------------------------------------
 
@@ -250,6 +250,7 @@ class RunStore:
                 f.write(json.dumps(error) + "\n")
         except OSError as e:
             raise _write_failed(self.path, ERRORS, e) from None
+        self.appended += 1
 
     def log_path(self, name: str) -> str:
         return str(self._root / LOGS / f"{name}.log")
@@ -394,7 +395,7 @@ def _frame_ok(root: Path, rel: str) -> bool:
     return target is not None and target.is_file()
 
 
-def check(path: str | Path, records: Sequence[AttemptRecord], k_max: int, frames: bool = True) -> None:
+def check_records(path: str | Path, records: Sequence[AttemptRecord], k_max: int, frames: bool = True) -> None:
     """RunDirError naming the first broken episode (see `problems`) and the way out."""
     found = problems(path, records, k_max, frames)
     if not found:
