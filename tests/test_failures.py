@@ -175,6 +175,7 @@ def test_a_full_disk_stops_the_store_with_one_line_and_leaves_no_temporary_file(
     assert len(read_records(fs / "run")) == data.count(b"\n")
 
 
+@pytest.mark.slow
 def test_a_full_disk_mid_run_is_one_line_and_the_resume_is_exact(ray_cluster, tmp_path_factory, small_fs):
     reference = mock_run(tmp_path_factory)
     fs = small_fs(320)
@@ -321,6 +322,7 @@ def _benchmark_server(bench: subprocess.Popen) -> psutil.Process:
     raise AssertionError("the benchmark's model server was not seen")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("how", ["ray does not start", "kill -9"])
 def test_the_rate_limit_benchmark_leaves_no_model_server(how):
     env = {**os.environ, "RAY_gcs_server_port_wait_time_s": "0"} if how == "ray does not start" else dict(os.environ)
