@@ -1,10 +1,12 @@
 """The dashboard's web server (aiohttp): static page, JSON API, live updates over
 Server-Sent Events.
 
-Every run directory is polled (stat, then only the new whole lines of its log); when a run
+Every run directory is polled by a loop and a thread of its own (stat, then only the new
+whole lines of its log), so a huge or broken run does not hold up the others; when a run
 changed, its view (card, curve, report table) is recomputed, throttled for large runs, and
 pushed to every open page with the grid cells that changed. With a Ray address, the runs
 live on that cluster are found by their metrics actors and their run directories added.
+Who may read it: `guard` (a loopback Host without a token; the token beyond loopback).
 """
 
 from __future__ import annotations
