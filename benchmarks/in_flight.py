@@ -115,8 +115,8 @@ def main() -> None:
 
     server, url, models = bench_endpoint(args.latency, timeouts={"request_s": 600.0}, max_images=3000)
     runtime = RuntimeOptions(num_cpus=args.num_cpus, progress=False, models_file=models, model_timeout_s=3600)
-    ensure_ray(runtime)
-    try:
+    try:  # the server is stopped however this ends (Ray's start failing included)
+        ensure_ray(runtime)
         for n in [int(x) for x in args.sweep.split(",") if x]:
             runs = max(3, 3 * n // GAMES)  # three waves of N episodes
             config = RunConfig(env="iphyre", model="bench", runs=runs, seed=1)

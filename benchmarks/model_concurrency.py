@@ -77,9 +77,10 @@ def main() -> None:
             from deepphy.actors.model_worker import make_model_worker
             from deepphy.envs import get_spec
 
-            ray.init(num_cpus=2, _node_ip_address=LOOPBACK_NODE_IP, include_dashboard=False,
-                     object_store_memory=200 * 1024**2, logging_level=logging.WARNING,
-                     _temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"))
+            from deepphy import local_ray
+
+            local_ray.start(2, LOOPBACK_NODE_IP, temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"),
+                            include_dashboard=False, object_store_memory=200 * 1024**2, logging_level=logging.WARNING)
             worker = make_model_worker("bench", get_spec("iphyre"), models_file=models)
             ray.get(worker.complete.remote(requests[0]), timeout=RAY_TIMEOUT_S)  # started
 

@@ -22,6 +22,7 @@ import urllib.request
 sys.path.insert(0, os.path.dirname(__file__))
 from model_common import bench_endpoint, iphyre_requests, max_in_window, server_stats  # noqa: E402
 
+from deepphy import local_ray  # noqa: E402
 from deepphy.runner import LOOPBACK_NODE_IP, quiet_environment  # noqa: E402
 
 RAY_TIMEOUT_S = 120
@@ -77,9 +78,9 @@ def main() -> None:
         a.latency, timeouts={"request_s": 30},
         rate_limits={"requests_per_min": a.rpm, "window_margin_s": a.margin},
     )
-    ray.init(num_cpus=2, _node_ip_address=LOOPBACK_NODE_IP, include_dashboard=False,
-             object_store_memory=200 * 1024**2, logging_level=logging.WARNING, _temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"))
-    try:
+    try:  # from here on, the server is stopped however this ends (Ray's start failing included)
+        local_ray.start(2, LOOPBACK_NODE_IP, temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"),
+                        include_dashboard=False, object_store_memory=200 * 1024**2, logging_level=logging.WARNING)
         limiter = ensure_limiter(model_config("bench", models))
         workers = [make_model_worker("bench", get_spec("iphyre"), models_file=models) for _ in range(a.workers)]
         requests = iphyre_requests(64)
@@ -116,4 +117,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except local_ray.RayStartFailed as e:
+        sys.exit(f"model_rate_limit: error: {e}")

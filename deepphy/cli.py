@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -81,6 +82,9 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
     plot.add_argument("--out", required=True, help="directory for the figures")
 
+    repair = sub.add_parser("repair", help="set aside what a resume cannot go on from (see the README's Run directory)")
+    repair.add_argument("run_dir", metavar="RUN_DIR")
+
     export = sub.add_parser("export", help="write the decisions of run directories as a Parquet dataset")
     export.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
     export.add_argument("--out", required=True, help="dataset directory (Parquet, images, README.md)")
@@ -103,6 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+MAX_OPTION_DEPTH = 16  # nesting of an --env-option's JSON value (no environment needs more than 2)
+
+
 def _env_options(pairs: list[str]) -> dict[str, object]:
     import json
 
@@ -110,12 +117,28 @@ def _env_options(pairs: list[str]) -> dict[str, object]:
     for pair in pairs:
         key, sep, value = pair.partition("=")
         if not sep or not key:
-            raise UserError(f"--env-option expects KEY=VALUE, got {pair!r}")
+            raise UserError(f"--env-option expects KEY=VALUE, got {pair[:80]!r}")
         try:
             options[key] = json.loads(value)
+            too_deep = _depth(options[key]) > MAX_OPTION_DEPTH
         except json.JSONDecodeError:
-            options[key] = value
+            options[key], too_deep = value, False
+        except RecursionError:  # deeper than Python's parser goes
+            too_deep = True
+        if too_deep:
+            raise UserError(f"--env-option {key[:40]}: the value is nested deeper than {MAX_OPTION_DEPTH} levels")
     return options
+
+
+def _depth(value: object) -> int:
+    """How deeply lists and dicts nest in `value` (iterative: any depth)."""
+    deepest, todo = 0, [(value, 1)]
+    while todo:
+        v, d = todo.pop()
+        if isinstance(v, (list, dict)):
+            deepest = max(deepest, d)
+            todo += [(x, d + 1) for x in (v.values() if isinstance(v, dict) else v)]
+    return deepest
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -308,8 +331,9 @@ def _shown_path(path: str | None) -> str:
 
 def cmd_dashboard(args: argparse.Namespace) -> int:
     import asyncio
+    import secrets
 
-    from deepphy.dashboard.server import Dashboard, serve
+    from deepphy.dashboard.server import TOKEN_ENV, Dashboard, is_loopback, serve
     from deepphy.dashboard.source import RunSource, is_run_dir, runs_in
 
     if not args.run_dirs and not args.address:
@@ -331,14 +355,17 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
 
         live.connect(args.address)  # no cluster there: a clear error now, not a page that waits
 
+    # Beyond loopback, every request must carry a token (printed with the URL).
+    token = None if is_loopback(args.host) else os.environ.get(TOKEN_ENV) or secrets.token_urlsafe(18)
+
     def announce(url: str) -> None:
         print(f"dashboard: {url}  (Ctrl-C to stop)", flush=True)
-        if args.host not in ("127.0.0.1", "localhost", "::1"):
-            print(f"note: listening on {args.host}: whoever reaches this port can read these runs' prompts, "
-                  "replies and frames", file=sys.stderr)
+        if token:
+            print(f"note: listening on {args.host}: the page asks for the token in this URL; whoever has the URL "
+                  "can read these runs' prompts, replies and frames", file=sys.stderr)
 
     try:
-        asyncio.run(serve(Dashboard(sources, roots, address=args.address), args.host, args.port, announce))
+        asyncio.run(serve(Dashboard(sources, roots, address=args.address), args.host, args.port, announce, token))
     except OSError as e:
         raise UserError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
     except KeyboardInterrupt:
@@ -363,6 +390,26 @@ def cmd_plot(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_repair(args: argparse.Namespace) -> int:
+    from deepphy.runner import resolve
+    from deepphy.runs.store import read_config, repair
+
+    _, _, k_max = resolve(read_config(args.run_dir))
+    done = repair(args.run_dir, k_max)
+    if not done.dropped_lines:
+        print(f"{args.run_dir}: nothing to repair")
+        return 0
+    print(f"{args.run_dir}: set aside {done.dropped_lines} line(s) of attempts.jsonl"
+          + (f" ({done.unreadable} not valid records)" if done.unreadable else "")
+          + f"; the old log is kept as {done.backup.name}")
+    for p in done.episodes[:10]:
+        print(f"  task {p.task} run {p.run}: from attempt {p.attempt} ({p.what})")
+    if len(done.episodes) > 10:
+        print(f"  ... and {len(done.episodes) - 10} more episode(s)")
+    print("the next `deepphy run` with the run's options runs them again")
+    return 0
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     from deepphy.export import export
 
@@ -373,12 +420,14 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_show, "watch": cmd_watch,
-            "solve": cmd_solve, "dashboard": cmd_dashboard, "plot": cmd_plot, "export": cmd_export}
+            "solve": cmd_solve, "dashboard": cmd_dashboard, "plot": cmd_plot, "export": cmd_export,
+            "repair": cmd_repair}
 
 
 def main(argv: list[str] | None = None) -> int:
     from deepphy.envs import UnknownEnvironment
-    from deepphy.models import MissingKey, ModelsFileError, UnknownModel
+    from deepphy.local_ray import RayStartFailed
+    from deepphy.models import AccessDenied, MissingKey, ModelsFileError, UnknownModel
     from deepphy.runner import ClusterUnavailable, ConfigError, quiet_environment
     from deepphy.runs.store import RunDirError
 
@@ -387,8 +436,8 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         return COMMANDS[args.command](args)
     except (UserError, ConfigError, RunDirError, UnknownEnvironment, UnknownModel, MissingKey, ModelsFileError,
-            ClusterUnavailable) as e:
-        print(f"deepphy: error: {e}", file=sys.stderr)
+            ClusterUnavailable, RayStartFailed, AccessDenied) as e:
+        print(f"deepphy: error: {_one_line(str(e))}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into `head` and friends
         sys.stderr.close()
@@ -396,6 +445,29 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("deepphy: interrupted; run the same command again to resume", file=sys.stderr)
         return 130
+    except Exception as e:  # noqa: BLE001 - a bug: one line here, the whole traceback in a file
+        return _crashed(e)
+
+
+def _crashed(error: Exception) -> int:
+    import tempfile
+    import traceback
+
+    text = "".join(traceback.format_exception(error))
+    try:
+        fd, path = tempfile.mkstemp(prefix="deepphy-error-", suffix=".txt")
+        with os.fdopen(fd, "w") as f:
+            f.write(f"deepphy {' '.join(sys.argv[1:])}\n{text}")
+        where = f"the traceback is in {path}"
+    except OSError:
+        where = "no file could be written for the traceback"
+    message = _one_line(str(error))[:300] or "(no message)"
+    print(f"deepphy: error: unexpected {type(error).__name__}: {message} ({where}; please report it)", file=sys.stderr)
+    return 1
+
+
+def _one_line(text: str) -> str:
+    return " ".join(line.strip() for line in text.splitlines() if line.strip())
 
 
 if __name__ == "__main__":

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from deepphy.chat import PromptFormat
 
@@ -27,6 +27,16 @@ class RunConfig(BaseModel):
     env_options: dict[str, Any] = Field(default_factory=dict)
     temperature: float = 0.1
     max_tokens: int = Field(1024, ge=1)
+
+    @field_validator("tasks")
+    @classmethod
+    def _unique_tasks(cls, tasks: list[str] | None) -> list[str] | None:
+        if tasks is not None:
+            seen = set()
+            twice = [t for t in tasks if t in seen or seen.add(t)]
+            if twice:
+                raise ValueError(f"task id(s) given more than once: {', '.join(dict.fromkeys(twice))}")
+        return tasks
 
     @model_validator(mode="after")
     def _known_names(self) -> "RunConfig":

@@ -22,7 +22,9 @@ import pyarrow.parquet as pq
 from deepphy.envs import specs
 from deepphy.envs.base import Planning
 from deepphy.runs.records import AttemptRecord, KeyFrame
-from deepphy.runs.store import RunDirError, read_config, read_records
+from deepphy.runs.store import (
+    FRAMES, PROMPTS, RunDirError, check_records, inside, is_stored_prompt, read_config, read_records,
+)
 
 DATA_FILE = "data/decisions.parquet"
 IMAGES = "images"
@@ -92,10 +94,14 @@ class _Images:
         self.run_dir, self.staging, self.source = run_dir, staging, source
         self.copied: dict[str, str | None] = {}
 
-    def add(self, rel: str) -> str | None:
-        """The dataset path of the run directory's file `rel` (copied), or None if absent."""
+    def add(self, rel: str, whose: str) -> str | None:
+        """The dataset path of the run directory's file `rel` (copied), or None if absent.
+        `whose`: the record or prompt that names it (for the error if it leads out)."""
         if rel not in self.copied:
-            src = self.run_dir / rel
+            src = inside(self.run_dir, rel)
+            if src is None:
+                raise RunDirError(f"{self.run_dir}: {rel}, named by {whose}, leads out of the run directory; "
+                                  "refusing to read it")
             if not src.is_file():
                 self.copied[rel] = None
             else:
@@ -120,10 +126,18 @@ def _frames_of_step(record: AttemptRecord, step: int, last: bool) -> list[KeyFra
 
 def _prompt(run_dir: Path, task: str, digest: str, images: _Images, cache: dict) -> tuple[list, list[str], int]:
     if digest not in cache:
+        rel = f"{PROMPTS}/{digest}.json"
+        path = inside(run_dir, rel)  # the digest is a validated record's
+        if path is None:
+            raise RunDirError(f"{run_dir}: {rel} leads out of the run directory; refusing to read it")
         try:
-            messages = json.loads((run_dir / "prompts" / f"{digest}.json").read_text())
+            messages = json.loads(path.read_text())
         except FileNotFoundError:
-            raise RunDirError(f"{run_dir}: prompt {digest} is missing (prompts/{digest}.json)") from None
+            raise RunDirError(f"{run_dir}: prompt {digest} is missing ({rel})") from None
+        except (OSError, ValueError, RecursionError) as e:
+            raise RunDirError(f"{run_dir}: {rel} cannot be read ({type(e).__name__})") from None
+        if not is_stored_prompt(messages):
+            raise RunDirError(f"{run_dir}: {rel} is not a stored prompt (a list of messages)")
         out, stored, missing = [], [], 0
         for m in messages:
             parts = []
@@ -133,7 +147,8 @@ def _prompt(run_dir: Path, task: str, digest: str, images: _Images, cache: dict)
                     parts.append({"type": "text", "text": text, "image": None, "name": None, "caption": None})
                     continue
                 name, caption = found.groups()
-                path = images.add(f"frames/{task}/{name}") if "/" not in name and name not in ("", ".", "..") else None
+                path = (images.add(f"{FRAMES}/{task}/{name}", f"prompt {digest}")
+                        if "/" not in name and name not in ("", ".", "..") else None)
                 parts.append({"type": "image", "text": None, "image": path, "name": name, "caption": caption})
                 if path:
                     stored.append(path)
@@ -146,10 +161,14 @@ def _prompt(run_dir: Path, task: str, digest: str, images: _Images, cache: dict)
 
 def rows_of(run_dir: Path, source: str, staging: Path) -> tuple[list[dict[str, Any]], int]:
     """The rows of one run directory (copying its images into `staging`) and the image count."""
+    from deepphy.runner import resolve
+
     images = _Images(run_dir, staging, source)
     prompts: dict[str, Any] = {}
     rows = []
-    records = sorted(read_records(run_dir), key=lambda r: (r.task, r.run, r.attempt))
+    records = read_records(run_dir)
+    check_records(run_dir, records, resolve(read_config(run_dir))[2], frames=False)  # no duplicated attempts
+    records.sort(key=lambda r: (r.task, r.run, r.attempt))
     for r in records:
         for i, s in enumerate(r.steps):
             last = i == len(r.steps) - 1
@@ -164,7 +183,8 @@ def rows_of(run_dir: Path, source: str, staging: Path) -> tuple[list[dict[str, A
                 "action": None if s.action is None else json.dumps(s.action, sort_keys=True),
                 "action_text": s.action_text, "valid": s.invalid_reason is None, "invalid_reason": s.invalid_reason,
                 "feedback": s.feedback, "info": json.dumps(s.info, sort_keys=True),
-                "key_frames": [images.add(f.path) for f in frames], "key_frame_captions": [f.caption for f in frames],
+                "key_frames": [images.add(f.path, f"the record of task {r.task} run {r.run} attempt {r.attempt}")
+                               for f in frames], "key_frame_captions": [f.caption for f in frames],
                 "final_step": last, "success": r.success, "attempt_invalid_reason": r.invalid_reason,
                 "outcome": r.feedback, "stars": r.stars, "score": r.score,
                 "attempt_input_tokens": usage.input_tokens, "attempt_output_tokens": usage.output_tokens,

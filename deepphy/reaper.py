@@ -1,108 +1,88 @@
 """Nothing left behind: a watchdog that stops the local Ray instance a driver started once
-that driver is gone, however it ended (a crash, Ctrl-C, `kill -9`).
+that driver is gone, however it ended (a crash, Ctrl-C, `kill -9`, during Ray's start
+included).
 
-Ray's own processes (GCS, raylet, log monitor, ...) are the roots; the reaper follows
-their descendants (workers, and the agents that rename themselves and ignore SIGTERM)
-while the driver lives, and when it dies, terminates every process it saw that is still
-the same process (same pid and start time), then kills what is left. It never touches a
-process it cannot trace to those roots.
+The driver starts it just before it starts Ray. It waits for the driver's exit without
+polling (a pidfd where the OS has one) and then looks through the processes once: every
+process with a file open in one of the driver's Ray sessions (`<Ray temp dir>/session_*_<driver
+pid>`: Ray names a local session after the process that starts it, and every Ray process
+of that session, the agents and workers that rename themselves included, holds its log
+files open) is terminated, and killed if it is still there a moment later (Ray's agents
+ignore SIGTERM). It never touches a process without a file in those sessions.
 
-    python -m deepphy.reaper DRIVER_PID PID:START_TIME ...
-
-The driver takes the first snapshot itself, so a driver killed a moment after starting
-Ray still leaves nothing behind.
+    python -m deepphy.reaper DRIVER_PID RAY_TEMP_DIR
 """
 
 from __future__ import annotations
 
 import os
+import select
+import signal
 import subprocess
 import sys
-import time
 
 import psutil
 
-POLL_S = 0.5
 GRACE_S = 2.0  # between SIGTERM and SIGKILL
+WAIT_S = 0.5  # how often the driver is checked where there is no pidfd
 
 
-def start(root_pids: list[int]) -> subprocess.Popen:
-    """Watch this process; reap `root_pids` and their descendants after it ends."""
-    roots = {}
-    for pid in root_pids:
-        try:
-            roots[pid] = psutil.Process(pid).create_time()
-        except psutil.Error:
-            pass
-    family = _family(roots)
+def start(temp_dir: str) -> subprocess.Popen:
+    """Watch this process; after it ends, stop the processes of the Ray sessions it started
+    under `temp_dir`."""
     return subprocess.Popen(
-        [sys.executable, "-m", "deepphy.reaper", str(os.getpid()),
-         *(f"{pid}:{started!r}" for pid, started in family.items())],
+        [sys.executable, "-m", "deepphy.reaper", str(os.getpid()), temp_dir],
         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True,  # not in the driver's process group: Ctrl-C does not stop it
     )
 
 
-def ray_roots() -> list[int]:
-    """The processes of the local Ray node this driver started."""
-    import ray._private.worker as worker
-
-    node = worker._global_node
-    if node is None:
-        return []
-    return [info.process.pid for infos in node.all_processes.values() for info in infos if info.process]
-
-
-def _family(roots: dict[int, float]) -> dict[int, float]:
-    """pid -> start time of the roots still alive and all their descendants."""
-    seen: dict[int, float] = {}
-    for pid, started in roots.items():
+def wait_for_exit(pid: int) -> None:
+    """Return once process `pid` has exited."""
+    try:
+        fd = os.pidfd_open(pid)
+    except (AttributeError, OSError):  # no pidfd (not Linux), or already gone
         try:
-            proc = psutil.Process(pid)
-            if proc.create_time() != started:
-                continue
-            for p in [proc, *proc.children(recursive=True)]:
-                seen[p.pid] = p.create_time()
-        except psutil.Error:
-            continue
-    return seen
-
-
-def _alive(procs: dict[int, float]) -> list[psutil.Process]:
-    out = []
-    for pid, started in procs.items():
-        try:
-            p = psutil.Process(pid)
-            if p.create_time() == started and p.status() != psutil.STATUS_ZOMBIE:
-                out.append(p)
+            psutil.Process(pid).wait()
         except psutil.Error:
             pass
-    return out
-
-
-def _running(pid: int) -> bool:
+        return
     try:
-        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
-    except psutil.Error:
-        return False
+        select.select([fd], [], [])
+    finally:
+        os.close(fd)
 
 
-def reap(driver: int, family: dict[int, float]) -> None:
-    """Follow `family` (pid -> start time) while `driver` runs; then stop what is left."""
+def session_processes(driver: int, temp_dir: str) -> list[psutil.Process]:
+    """Every process with a file open in one of `driver`'s Ray sessions under `temp_dir`."""
+    prefix = os.path.join(os.path.realpath(temp_dir), "session_")
+    suffix = f"_{driver}"
     me = os.getpid()
-    while _running(driver):
-        family.update(_family(family))
-        time.sleep(POLL_S)
-    family.update(_family(family))  # what they started last
-    family.pop(me, None)
-    left = _alive(family)
+    found = []
+    for proc in psutil.process_iter():
+        if proc.pid == me:
+            continue
+        try:
+            files = proc.open_files()
+        except psutil.Error:
+            continue
+        for f in files:
+            if f.path.startswith(prefix) and f.path[len(prefix):].split("/", 1)[0].endswith(suffix):
+                found.append(proc)
+                break
+    return found
+
+
+def reap(driver: int, temp_dir: str) -> None:
+    wait_for_exit(driver)
+    left = session_processes(driver, temp_dir)
     for p in left:
         try:
             p.terminate()
         except psutil.Error:
             pass
-    _, left = psutil.wait_procs(left, timeout=GRACE_S)
-    for p in left:  # the agents ignore SIGTERM
+    psutil.wait_procs(left, timeout=GRACE_S)
+    for p in session_processes(driver, temp_dir):  # what ignored SIGTERM, and what was being started
         try:
             p.kill()
         except psutil.Error:
@@ -110,7 +90,5 @@ def reap(driver: int, family: dict[int, float]) -> None:
 
 
 if __name__ == "__main__":
-    try:
-        reap(int(sys.argv[1]), {int(p): float(t) for p, _, t in (a.partition(":") for a in sys.argv[2:])})
-    except psutil.Error:
-        pass
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    reap(int(sys.argv[1]), sys.argv[2])

@@ -11,17 +11,18 @@ import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable
 
 from pydantic import ValidationError
 
 from deepphy import reaper
 from deepphy.config import RunConfig, RuntimeOptions
+from deepphy.agents import endpoint_config, make_agent
 from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.metrics import figures as F
 from deepphy.metrics.live import format_progress
 from deepphy.runs.status import RunStatus, remove_status, write_status
-from deepphy.runs.store import CONFIG, RunDirError, RunStore, read_records
+from deepphy.runs.store import CONFIG, RunStore, check_records, read_records
 
 RAY_TIMEOUT_S = 60.0
 # Ray takes 127.0.0.1 as "no address given" and advertises the machine's primary interface;
@@ -92,11 +93,12 @@ def quiet_environment() -> None:
     os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
 
 
-def ensure_ray(runtime: RuntimeOptions) -> bool:
+def ensure_ray(runtime: RuntimeOptions, say: Callable[[str], None] = lambda _: None) -> bool:
     """Connect to Ray; returns True if this call connected (to disconnect or shut down later).
     An address (HOST:PORT or "auto") joins that cluster; so does RAY_ADDRESS when none is
     given (`ray job submit` and KubeRay set it for the driver). Otherwise a new local cluster
-    starts, even if `ray start` left an address file on this machine."""
+    starts (deepphy.local_ray), even if `ray start` left an address file on this machine.
+    `say` hears what is being done (and a retried start)."""
     import ray
 
     if ray.is_initialized():
@@ -104,21 +106,18 @@ def ensure_ray(runtime: RuntimeOptions) -> bool:
     quiet_environment()
     address = runtime.address or os.environ.get("RAY_ADDRESS")
     if address:
+        say(f"joining the Ray cluster at {address}")
         join_cluster(address)
         return True
-    # A local cluster on loopback keeps Ray's default token auth; its notice is noise here.
-    logging.getLogger("ray._private.authentication.authentication_token_setup").setLevel(logging.ERROR)
-    ray.init(
-        address="local",
-        num_cpus=runtime.num_cpus,
-        _node_ip_address=LOOPBACK_NODE_IP,
-        include_dashboard=False,
-        object_store_memory=256 * 1024**2,
-        logging_level=logging.WARNING,
-    )
-    # If this process dies without shutting Ray down (kill -9), the watchdog stops the local
-    # Ray processes it started, agents included, within seconds.
-    reaper.start(reaper.ray_roots())
+    from deepphy import local_ray
+
+    say(f"starting Ray (local, {runtime.num_cpus} CPUs)")
+    # Started first: if this process dies at any point from here (kill -9 during Ray's own
+    # start included), the watchdog stops every process of the local Ray instance it started.
+    reaper.start(local_ray.temp_root())
+    # Worker output stays in the run directory's logs/ and Ray's session logs, not the terminal.
+    local_ray.start(runtime.num_cpus, LOOPBACK_NODE_IP, say=say, include_dashboard=False,
+                    object_store_memory=256 * 1024**2, logging_level=logging.WARNING, log_to_driver=False)
     return True
 
 
@@ -199,33 +198,48 @@ def _probe(host: str, port: int, address: str, timeout_s: float) -> None:
 
 def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None = None, *,
              stream=sys.stderr) -> RunOutcome:
-    """Run (or resume) an evaluation into `out`. Raises ConfigError / RunDirError and the
-    models' errors (unknown model, missing key) for user errors, before writing anything."""
+    """Run (or resume) an evaluation into `out`. Every check that needs no Ray comes first
+    and raises ConfigError / RunDirError / the models' errors (unknown model, missing key)
+    before Ray starts and without writing anything; a finished run returns at once, without
+    Ray."""
     import ray
-
-    from deepphy.actors.env_worker import make_env_worker
-    from deepphy.actors.metrics_actor import make_metrics_actor
-    from deepphy.actors.model_worker import make_model_worker
-    from deepphy.actors.rate_limiter import ensure_limiter
-    from deepphy.agents import endpoint_config, make_agent
-    from deepphy.scheduler import Scheduler, WorkerModel
 
     runtime = runtime or RuntimeOptions()
     spec, tasks, k_max = resolve(config)
     endpoint = endpoint_config(config.model, runtime.models_file)
     make_agent(config.model, runtime.models_file)  # a missing key fails here, before anything is written
-    RunStore.check(out, config)  # a directory holding another run fails before Ray starts
-    started_ray = ensure_ray(runtime)  # no cluster at the address: fails before the directory is made
+    store = RunStore.claim(out, config)  # another run's directory, or one in use: fails here
+    try:
+        existing = read_records(out)
+        check_records(out, existing, k_max)
+        total = len(tasks) * config.runs
+        done = _episodes_done(existing, tasks, config.runs, k_max)
+        if done == total:  # nothing to do: no Ray
+            store.close()
+            return RunOutcome(out=Path(out), episodes_total=total, episodes_done=done, new_records=0, unfinished=[])
+        store.start_writing()  # a read-only or unwritable directory: fails here
+    except BaseException:
+        store.discard()
+        raise
+    view = StartView(stream) if runtime.progress else None
+    say = view.say if view else (lambda _: None)
+    try:
+        started_ray = ensure_ray(runtime, say)  # no cluster at the address: fails before anything is written
+    except BaseException:
+        if view:
+            view.stop()
+        store.discard()
+        raise
+    from deepphy.actors.env_worker import make_env_worker
+    from deepphy.actors.metrics_actor import make_metrics_actor
+    from deepphy.actors.model_worker import make_model_worker
+    from deepphy.actors.rate_limiter import ensure_limiter
+    from deepphy.scheduler import Scheduler, WorkerModel
+
     actors: list[Any] = []
     model_actors: list[Any] = []
     try:
-        store = RunStore.create_or_resume(out, config)
-    except BaseException:
-        _stop_ray(started_ray)
-        raise
-    try:
-        existing = read_records(out)
-        _check_unique(existing, out)
+        say("starting workers")
         n_workers = runtime.env_workers or _default_workers(runtime.env_resource)
         # Named "deepphy/<run id>/<role>": a dashboard or an operator can find a live run's
         # metrics actor (ray.util.list_named_actors) and poll its snapshot.
@@ -250,32 +264,34 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             worker = make_model_worker(config.model, spec, name=f"{prefix}/model", models_file=runtime.models_file,
                                        max_concurrency=max(1000, runtime.max_in_flight))
             probe = (store.path / CONFIG).resolve()
-            seen = ray.get(worker.read_file.remote(str(probe)), timeout=RAY_TIMEOUT_S)
+            seen = _started(worker.read_file.remote(str(probe)), "the model worker", runtime)
             shares_files = seen == probe.read_bytes()
             model, model_actors = WorkerModel(worker, shares_files), [worker]
-        total = len(tasks) * config.runs
         metrics = make_metrics_actor(total, k_max, spec.max_steps, name=f"{prefix}/metrics", run={
             "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})
         actors = [*env_workers, *model_actors, metrics, *([limiter] if limiter is not None else [])]
-        ray.get(metrics.add.remote([r.summary() for r in existing], resumed=True), timeout=RAY_TIMEOUT_S)
+        _started(metrics.add.remote([r.summary() for r in existing], resumed=True), "the metrics actor", runtime)
+        if view:
+            view.stop()
+            view = None
         scheduler = Scheduler(config, runtime, spec, tasks, store, env_workers, model, metrics, k_max)
         asyncio.run(_drive(scheduler, existing, env_workers, metrics, runtime, stream, store.path, status))
         # The run directory, not a live actor, says what is done.
         records = read_records(out)
-        done = sum(1 for e in F.episodes(records, k_max) if e.finished and e.run < config.runs
-                   and e.task in {t.id for t in tasks})
         return RunOutcome(
             out=Path(out),
             episodes_total=total,
-            episodes_done=done,
+            episodes_done=_episodes_done(records, tasks, config.runs, k_max),
             new_records=len(records) - len(existing),
             unfinished=scheduler.failed,
             errored=scheduler.errored,
             worker_stats=_worker_stats(env_workers),
         )
     finally:
+        if view:
+            view.stop()
         remove_status(store.path)
-        store.close()
+        store.discard()  # closes; removes a directory this run made and recorded nothing in
         # A model worker closes its connections itself, or its client complains as it dies.
         try:
             closing = [worker.close.remote() for worker in model_actors]
@@ -289,6 +305,64 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             except Exception:  # noqa: BLE001 - already gone
                 pass
         _stop_ray(started_ray)
+
+
+def _started(ref: Any, what: str, runtime: RuntimeOptions) -> Any:
+    """The result of an actor's first call: its process must start first, which takes long on
+    a busy machine (bounded like an environment step); one line if it never does."""
+    import ray
+
+    try:
+        return ray.get(ref, timeout=runtime.step_timeout_s)
+    except ray.exceptions.GetTimeoutError:
+        raise ClusterUnavailable(f"{what} did not start within {runtime.step_timeout_s:g} s (an overloaded "
+                                 "machine, or no room on the cluster); run the same command again to resume") from None
+
+
+def _episodes_done(records, tasks: list[Task], runs: int, k_max: int) -> int:
+    wanted = {t.id for t in tasks}
+    return sum(1 for e in F.episodes(records, k_max) if e.finished and e.run < runs and e.task in wanted)
+
+
+class StartView:
+    """What a run is doing before its progress line begins (Ray's start can take a minute on
+    a busy machine): a line at once, then the time it has taken, every second on a terminal
+    and every 10 s otherwise."""
+
+    def __init__(self, stream) -> None:
+        import threading
+
+        self.stream, self.tty = stream, stream.isatty()
+        self.phase, self.since = "", time.monotonic()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._tick, daemon=True)
+        self._thread.start()
+
+    def say(self, phase: str) -> None:
+        self.phase, self.since = phase, time.monotonic()
+        self._show()
+
+    def _show(self) -> None:
+        if not self.phase:
+            return
+        took = int(time.monotonic() - self.since)
+        line = f"{self.phase} ..." + (f" {took}s" if took else "")
+        try:
+            self.stream.write(f"\r\x1b[2K{line}" if self.tty else f"{line}\n")
+            self.stream.flush()
+        except (OSError, ValueError):  # a closed stream: progress is best effort
+            pass
+
+    def _tick(self) -> None:
+        while not self._stop.wait(1.0 if self.tty else 10.0):
+            self._show()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
+        if self.tty and self.phase:
+            self.stream.write("\r\x1b[2K")
+            self.stream.flush()
 
 
 def _worker_stats(env_workers: list[Any]) -> list[dict[str, int]]:
@@ -319,14 +393,6 @@ def _default_workers(resource: str | None) -> int:
     return max(1, int(sum(n["Resources"].get("CPU", 0) for n in nodes)))
 
 
-def _check_unique(records: Sequence[Any], out: str | Path) -> None:
-    seen: set[tuple[str, int, int]] = set()
-    for r in records:
-        if r.key in seen:
-            raise RunDirError(f"{out}: duplicate record for task {r.task} run {r.run} attempt {r.attempt}")
-        seen.add(r.key)
-
-
 async def _drive(scheduler, existing, env_workers, metrics, runtime: RuntimeOptions, stream, run_dir: Path,
                  status: RunStatus) -> None:
     """Start the workers, warm them up (compiling kernels on first use), then run the
@@ -341,11 +407,16 @@ async def _drive(scheduler, existing, env_workers, metrics, runtime: RuntimeOpti
 
     view = asyncio.ensure_future(_progress(scheduler, metrics, phase, stream)) if runtime.progress else None
     try:
-        await asyncio.wait_for(asyncio.gather(*(w.stats.remote() for w in env_workers)),
-                               timeout=runtime.step_timeout_s)  # the workers' processes are up
-        enter("compiling")
-        await asyncio.wait_for(asyncio.gather(*(w.warm_up.remote(scheduler.tasks) for w in env_workers)),
-                               timeout=runtime.step_timeout_s)
+        try:
+            await asyncio.wait_for(asyncio.gather(*(w.stats.remote() for w in env_workers)),
+                                   timeout=runtime.step_timeout_s)  # the workers' processes are up
+            enter("compiling")
+            await asyncio.wait_for(asyncio.gather(*(w.warm_up.remote(scheduler.tasks) for w in env_workers)),
+                                   timeout=runtime.step_timeout_s)
+        except asyncio.TimeoutError:
+            raise ClusterUnavailable(f"the environment workers did not start within {runtime.step_timeout_s:g} s "
+                                     "(an overloaded machine, or no room on the cluster for them); run the same "
+                                     "command again to resume") from None
         enter("running")
         await scheduler.run(existing)
     finally:
@@ -372,7 +443,11 @@ async def _print_snapshot(scheduler, metrics, phase: str, stream, final: bool) -
     try:
         # The driver's own counters go to the metrics actor, so `deepphy watch` sees them too.
         scheduler.send_summaries()
-        metrics.update.remote({**scheduler.activity(), "phase": phase})  # also while warming up
+        try:  # requests waiting for the rate limit or before a retry: a run that seems stuck says why
+            waiting = await asyncio.wait_for(scheduler.model.activity(), timeout=5)
+        except Exception:  # noqa: BLE001 - a restarting model worker: no figures this time
+            waiting = {}
+        metrics.update.remote({**scheduler.activity(), **waiting, "phase": phase})  # also while warming up
         snap = await asyncio.wait_for(metrics.snapshot.remote(), timeout=10)
     except Exception:  # noqa: BLE001 - progress is best effort
         return

@@ -25,14 +25,16 @@ from deepphy.actors.env_worker import LostEpisode
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import Action, EnvSpec, Observation, StepResult, Task
 from deepphy.envs.base import ObservationCache
-from deepphy.models import ModelError, ModelRequest, ModelResponse
+from deepphy.models import AccessDenied, ModelError, ModelRequest, ModelResponse
 from deepphy.protocol import ModelHandle, run_attempt
 from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished
-from deepphy.runs.store import RunStore
+from deepphy.runs.store import RunStore, RunWriteError
 
 log = logging.getLogger(__name__)
 
 WORKER_LOST = (LostEpisode, ActorDiedError, ActorUnavailableError, RayActorError)
+# Failures no retry can mend, that end the whole run at once (raised by `Scheduler.run`).
+FATAL = (RunWriteError, AccessDenied)
 
 
 class WorkerLost(RuntimeError):
@@ -109,6 +111,9 @@ class WorkerModel:
             request = request.with_images_loaded()
         return await self.worker.complete.remote(request)
 
+    async def activity(self) -> dict[str, int]:
+        return await self.worker.activity.remote()
+
 
 class Scheduler:
     def __init__(
@@ -139,6 +144,7 @@ class Scheduler:
         self.failed: list[str] = []  # episodes left unfinished (model or worker failures, budget), for the caller
         self.errored: list[str] = []  # episodes whose attempt raised an unexpected error
         self.stop_requested = False
+        self.fatal: BaseException | None = None  # the first FATAL error: the run stops and raises it
         self.spent_usd = 0.0  # model cost of the run so far (stored records + requests of this session)
         self.budget_hit = False
         self.in_flight = 0
@@ -174,6 +180,9 @@ class Scheduler:
                 except (ModelUnavailable, WorkerLost, BudgetExhausted) as e:
                     self.failed.append(f"{task.id} run {run}: {e}")
                     log.warning("episode %s run %d left unfinished: %s", task.id, run, e)
+                except FATAL as e:  # the other episodes finish their attempts in flight, then stop
+                    self.fatal = self.fatal or e
+                    self.stop_requested = True
                 finally:
                     self.in_flight -= 1
 
@@ -183,13 +192,16 @@ class Scheduler:
         finally:
             flusher.cancel()
             self.send_summaries()
+        if self.fatal is not None:
+            raise self.fatal
 
     async def _episode(self, task: Task, run: int, records: list[AttemptRecord]) -> None:
+        """`records`: the episode's attempts 1..n so far (the store checked them on resume)."""
         while not episode_finished(records, self.k_max) and not self.stop_requested:
             attempt = len(records) + 1
             try:
                 record = await self._attempt_with_retries(task, run, attempt, records)
-            except (ModelUnavailable, WorkerLost, BudgetExhausted, asyncio.CancelledError):
+            except (ModelUnavailable, WorkerLost, BudgetExhausted, asyncio.CancelledError, *FATAL):
                 raise
             except Exception as error:  # noqa: BLE001 - one attempt's bug must not end the run
                 self._record_error(task, run, attempt, error)
@@ -257,8 +269,10 @@ class Scheduler:
             raise BudgetExhausted(f"cost budget ${self.runtime.max_cost_usd:g} reached (${self.spent_usd:.4f} spent)")
         try:
             response = await asyncio.wait_for(self.model.complete(request), timeout=self.runtime.model_timeout_s)
-        except ModelError as e:
-            raise ModelUnavailable(str(e), retries=getattr(e, "retries", 0)) from e
+        except AccessDenied as e:  # the key is refused: no attempt can succeed
+            raise AccessDenied(str(getattr(e, "cause", e)), kind="denied") from None
+        except ModelError as e:  # from a model worker: the error's own words, not Ray's wrapping
+            raise ModelUnavailable(str(getattr(e, "cause", e)), retries=getattr(e, "retries", 0)) from e
         except (asyncio.TimeoutError, RayActorError) as e:
             raise ModelUnavailable(f"model worker: {type(e).__name__}") from e
         self.decisions += 1

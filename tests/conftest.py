@@ -40,18 +40,14 @@ def ray_cluster():
 
     import ray
 
+    from deepphy import local_ray
     from deepphy.runner import LOOPBACK_NODE_IP
 
     temp_dir = tempfile.mkdtemp(prefix="dpray", dir="/tmp")  # short: socket paths have a length limit
-    context = ray.init(
-        num_cpus=2,
-        _node_ip_address=LOOPBACK_NODE_IP,
-        include_dashboard=False,
-        object_store_memory=200 * 1024**2,
-        _temp_dir=temp_dir,
-        logging_level=logging.WARNING,
-    )
-    address = context.address_info["gcs_address"]
+    # As `deepphy run` starts it: the machine the tests run on is often busy.
+    local_ray.start(2, LOOPBACK_NODE_IP, temp_dir=temp_dir, include_dashboard=False,
+                    object_store_memory=200 * 1024**2, logging_level=logging.WARNING)
+    address = ray.get_runtime_context().gcs_address
     assert address.startswith("127."), f"the test cluster must stay on loopback, got {address}"
     yield address
     ray.shutdown()

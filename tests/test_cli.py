@@ -25,6 +25,9 @@ TASKS = "support,hinder,direction,hole,fill,seesaw"
     (["run", "--tasks", "support,nosuch"], "unknown iphyre task(s) nosuch"),
     (["run", "--env-option", "annotate"], "KEY=VALUE"),
     (["run", "--env-option", "annotate=1"], "bad option for iphyre"),
+    (["run", "--tasks", "support,hinder,support"], "tasks: task id(s) given more than once: support"),
+    (["run", "--env-option", "a=" + "[" * 100_000 + "]" * 100_000], "nested deeper than 16 levels"),
+    (["run", "--env-option", "a=" + "[" * 17 + "]" * 17], "nested deeper than 16 levels"),
     (["report", "/nonexistent/run"], "does not exist"),
     (["show", "--env", "iphyre", "--task", "nosuch", "--out", "x"], "unknown iphyre task"),
 ])

@@ -4,8 +4,13 @@ tested in a real browser in test_dashboard_browser.py."""
 
 import asyncio
 import json
+import re
+import shutil
 import socket
+import subprocess
 import time
+import urllib.error
+import urllib.request
 
 import pytest
 from aiohttp.test_utils import TestClient, TestServer
@@ -317,3 +322,157 @@ def test_live_runs_from_metrics_snapshots(run_dir):
         dashboard.executor.shutdown()
 
     asyncio.run(scenario())
+
+
+# -- a run directory is untrusted; the server answers only whom it should ----------------
+
+
+def test_nothing_outside_the_run_directory_is_read_or_served(run_dir, tmp_path):
+    """A record naming a prompt outside the run, a frames/ directory symlinked out of it, a
+    prompt file of the wrong shape, a NUL byte in a file path: refused, never a 500."""
+    copy = tmp_path / "copy"
+    log = copy_run(run_dir, copy, lines=12)
+    secret = tmp_path / "secret"
+    secret.mkdir()
+    (secret / "x.json").write_text('[{"role": "user", "content": ["the secret"]}]')
+    first = read_records(copy)[0]
+    bad = json.loads(log[12])
+    bad["steps"][0]["prompt"] = "../../../secret/x"
+    append(copy, [json.dumps(bad).encode()])
+    (copy / "prompts" / f"{first.steps[0].prompt}.json").write_text('{"role": "user", "content": {"a": 1}}')
+    frames = copy / "frames"
+    shutil.move(frames, secret / "frames")
+    frames.symlink_to(secret / "frames")
+
+    async def scenario():
+        source = RunSource(copy)
+        dashboard = Dashboard([source], poll_s=0.1)
+        async with TestClient(TestServer(make_app(dashboard))) as client:
+            while not (await (await client.get("/api/state")).json())["runs"]:
+                await asyncio.sleep(0.05)
+            (view,) = (await (await client.get("/api/state")).json())["runs"]
+            assert view["progress"]["attempts"] == 12 and "not a valid attempt record" in view["errors"][0]
+            episode = await client.get(f"/api/runs/{source.id}/episode?task={first.task}&run={first.run}")
+            assert episode.status == 200
+            body = await episode.json()
+            assert body["prompts"][first.steps[0].prompt] is None and "the secret" not in await episode.text()
+            frame = first.key_frames[0].path
+            assert (await client.get(f"/files/{source.id}/{frame}")).status == 404  # frames/ leads out
+            assert (await client.get(f"/files/{source.id}/frames/a%00b.png")).status == 404
+
+    asyncio.run(scenario())
+
+
+def test_a_duplicated_attempt_is_flagged_not_counted(run_dir, tmp_path):
+    copy = tmp_path / "copy"
+    log = copy_run(run_dir, copy, lines=12)
+    append(copy, [log[3]])
+    source = loaded(copy)
+    assert len(source.records) == 12
+    assert any("is recorded twice" in e and "deepphy repair" in e for e in source.view()["errors"])
+    assert main(["report", str(copy)]) == 2  # the report refuses it
+
+
+def test_a_huge_line_is_read_in_linear_time_and_skipped(tmp_path):
+    """One 60 MB line: read once (not grown piece by piece), skipped, and the records after
+    it are read."""
+    run = synthetic_run(tmp_path / "run", env="iphyre", limit=2, runs=1)
+    lines = (run / ATTEMPTS).read_bytes().splitlines()
+    (run / ATTEMPTS).write_bytes(lines[0] + b"\n" + b"x" * (60 * 1024 * 1024) + b"\n" + b"\n".join(lines[1:]) + b"\n")
+    source = RunSource(run)
+    t0 = time.monotonic()
+    while source.poll() or source.loading:
+        pass
+    took = time.monotonic() - t0
+    assert len(source.records) == len(lines) and "longer than 16 MiB" in source.errors[0]
+    assert took < 10, took
+
+
+def test_a_run_that_takes_long_to_load_does_not_hold_up_the_others(run_dir, tmp_path):
+    """Each run has its own thread: while a large log loads, another run's API answers."""
+    big = tmp_path / "big"
+    log = copy_run(run_dir, big, lines=0)
+    config = json.loads((big / "config.json").read_text())
+    config["runs"] = 4000
+    (big / "config.json").write_text(json.dumps(config))
+    with open(big / ATTEMPTS, "wb") as f:
+        for run in range(4000):  # ~170k records, distinct episodes
+            for line in log[:44]:
+                record = json.loads(line)
+                if record["run"] == 0:
+                    record["run"] = run
+                    f.write(json.dumps(record).encode() + b"\n")
+    small = loaded(run_dir)
+
+    async def scenario():
+        dashboard = Dashboard([RunSource(big), small], poll_s=0.1)
+        async with TestClient(TestServer(make_app(dashboard))) as client:
+            await asyncio.sleep(0.5)  # the big run's first slices are being read
+            assert dashboard.sources[next(iter(dashboard.sources))].loading
+            waits = []
+            end = time.monotonic() + 4
+            while time.monotonic() < end:  # the single shared thread made these wait for whole slices
+                t0 = time.monotonic()
+                assert (await client.get(f"/api/runs/{small.id}/report")).status == 200
+                waits.append(time.monotonic() - t0)
+                await asyncio.sleep(0.1)
+            return waits, dashboard.sources[next(iter(dashboard.sources))].loading
+
+    waits, still_loading = asyncio.run(scenario())
+    assert still_loading and max(waits) < 0.5, waits
+
+
+def test_only_loopback_hosts_are_answered_without_a_token(run_dir):
+    async def scenario():
+        dashboard = Dashboard([RunSource(run_dir)])
+        async with TestClient(TestServer(make_app(dashboard))) as client:
+            ok = await client.get("/api/state")
+            rebound = await client.get("/api/state", headers={"Host": "attacker.example:8700"})
+            local = await client.get("/api/state", headers={"Host": "localhost:8700"})
+            return ok.status, rebound.status, local.status
+
+    assert asyncio.run(scenario()) == (200, 403, 200)
+
+
+def test_beyond_loopback_every_request_needs_the_token(run_dir):
+    token = "t0ken-for-the-test"
+
+    async def scenario():
+        dashboard = Dashboard([RunSource(run_dir)], poll_s=0.1)
+        async with TestClient(TestServer(make_app(dashboard, token))) as client:
+            statuses = [(await client.get(path, allow_redirects=False)).status
+                        for path in ("/", "/api/state", "/static/app.js", "/api/state?token=wrong")]
+            entry = await client.get(f"/?token={token}", allow_redirects=False)
+            assert entry.status == 302 and entry.headers["Location"] == "/"
+            assert "HttpOnly" in entry.headers["Set-Cookie"] and "SameSite=Strict" in entry.headers["Set-Cookie"]
+            # the cookie now goes with the page's own requests (the event stream included)
+            assert (await client.get("/api/state")).status == 200
+            events = await client.get("/api/events")
+            assert (await _next_event(events))[0] == "state"
+            events.close()
+            client.session.cookie_jar.clear()
+            assert (await client.get("/api/state")).status == 401
+            bearer = await client.get("/api/state", headers={"Authorization": f"Bearer {token}",
+                                                             "Host": "dashboard.lan:8700"})
+            return statuses, bearer.status
+
+    statuses, bearer = asyncio.run(scenario())
+    assert statuses == [401, 401, 401, 401] and bearer == 200
+
+
+def test_cli_prints_the_token_with_the_url_beyond_loopback(run_dir, deepphy_cmd):
+    proc = subprocess.Popen([*deepphy_cmd, "dashboard", str(run_dir), "--host", "0.0.0.0", "--port", "0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        url = re.search(r"http://\S+", line).group(0)
+        assert re.fullmatch(r"http://0\.0\.0\.0:\d+/\?token=[A-Za-z0-9_-]{20,}", url), line
+        port, token = re.search(r":(\d+)/\?token=(\S+)", url).groups()
+        with pytest.raises(urllib.error.HTTPError) as e:
+            urllib.request.urlopen(f"http://127.0.0.1:{port}/api/state", timeout=30)
+        assert e.value.code == 401
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/api/state?token={token}", timeout=30) as r:
+            assert json.load(r)["runs"] is not None
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)

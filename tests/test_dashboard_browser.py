@@ -180,7 +180,8 @@ def test_episode_view_shows_prompts_replies_and_frames(runs, serve, open_page, s
     page = open_page(server.url)
     records = read_records(runs[0])
     later = next(r for r in records if r.attempt >= 2)
-    page.click(f'#grid .cell[data-task="{later.task}"][data-r="{later.run}"]')
+    # the first run given is shown (runs load side by side; the page keeps the given order)
+    page.click(f'#grid .cell[data-run="{run_id(runs[0].resolve())}"][data-task="{later.task}"][data-r="{later.run}"]')
     page.wait_for_selector("#episode .attempt")
     attempts = [r for r in records if (r.task, r.run) == (later.task, later.run)]
     assert page.eval_on_selector_all("#episode details.attempt", "ds => ds.length") == len(attempts)

@@ -130,3 +130,31 @@ def test_cli_export_replaces_an_earlier_export_and_refuses_other_directories(run
     assert [p.name for p in foreign.iterdir()] == ["mine.txt"]
     assert main(["export", str(tmp_path / "nosuch"), "--out", str(tmp_path / "x")]) == 2
     assert not (tmp_path / "x").exists()
+
+
+def test_nothing_outside_a_run_directory_is_exported(runs, tmp_path, capsys):
+    """A key frame symlinked to a file elsewhere, a prompt file that is not a prompt, a
+    duplicated attempt: one line each, and no dataset."""
+    import shutil
+
+    from dashboard_support import append
+
+    secret = tmp_path / "secret.png"
+    secret.write_bytes(b"private")
+    linked = tmp_path / "linked"
+    shutil.copytree(runs[1], linked)
+    frame = linked / next(r for r in read_records(linked) if r.key_frames).key_frames[0].path
+    frame.unlink()
+    frame.symlink_to(secret)
+    shaped = tmp_path / "shaped"
+    shutil.copytree(runs[1], shaped)
+    (shaped / "prompts" / f"{read_records(shaped)[0].steps[0].prompt}.json").write_text('{"role": "user"}')
+    doubled = tmp_path / "doubled"
+    shutil.copytree(runs[1], doubled)
+    append(doubled, [(doubled / "attempts.jsonl").read_bytes().splitlines()[0]])
+    for run, words in ((linked, "leads out of the run directory"), (shaped, "is not a stored prompt"),
+                       (doubled, "is recorded 2 times")):
+        assert main(["export", str(run), "--out", str(tmp_path / f"ds-{run.name}")]) == 2
+        err = capsys.readouterr().err
+        assert words in err and err.count("\n") == 1, err
+        assert not (tmp_path / f"ds-{run.name}").exists()

@@ -14,7 +14,7 @@ from deepphy.runs.records import AttemptRecord, StepRecord
 def rec(task, run, attempt, success=False, invalid=None, stars=None, steps=1, group=""):
     return AttemptRecord(
         env="iphyre", task=task, group=group, run=run, attempt=attempt, model="mock", format="vla", seed=0,
-        steps=[StepRecord(step=i + 1, prompt="p", raw_output="x") for i in range(steps)],
+        steps=[StepRecord(step=i + 1, prompt="0123abcd", raw_output="x") for i in range(steps)],
         success=success, invalid_reason=invalid, stars=stars,
     )
 
@@ -161,6 +161,9 @@ def test_progress_line_says_what_is_happening():
     # episodes' work in 72 s of running; 117 - 19.7 episodes' work left
     assert "ETA 5m09s" in line and line.endswith("1m15s")
     assert "% of finished" not in line
+    assert "waiting" not in line
+    live.update(rate_limited=12, retrying=3)  # what a run that seems stuck is doing
+    assert "· waiting 12 for the rate limit, 3 to retry ·" in format_progress(live.snapshot())
 
 
 def test_eta_counts_the_work_of_episodes_in_flight():

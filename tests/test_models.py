@@ -12,7 +12,7 @@ import jsonschema
 import pytest
 
 from deepphy.models import (
-    ModelConfig, ModelError, UnknownModel, client_from_config, load_models, model_config,
+    AccessDenied, ModelConfig, ModelError, UnknownModel, client_from_config, load_models, model_config,
 )
 from deepphy.models.config import MissingKey, ModelsFile
 from deepphy.agents import MockModel, make_agent
@@ -312,12 +312,70 @@ def test_retries_are_bounded_and_raise_model_error(server):
     assert server.stats()["requests"] == 3
 
 
-def test_retry_after_is_capped(server):
-    server.configure(faults={"first_tries": 1, "kinds": ["429"], "retry_after_s": 3600})
-    cfg = local_config(server.url, "openai", retry={"max_retry_after_s": 0.1, "base_delay_s": 0.01})
+def test_a_retry_after_above_the_cap_fails_the_request_at_once(server):
+    """`Retry-After: 3600` is not waited out (nor cut short and retried): the request fails at
+    once, one try, as a model error the scheduler re-queues."""
+    server.configure(faults={"rate": 1.0, "kinds": ["429"], "retry_after_s": 3600})
+    cfg = local_config(server.url, "openai", retry={"max_retry_after_s": 60, "base_delay_s": 0.01})
     t0 = time.perf_counter()
-    assert run(complete_once(cfg, iphyre_request(0))).retries == 1
-    assert time.perf_counter() - t0 < 5
+    with pytest.raises(ModelError) as e:
+        run(complete_once(cfg, iphyre_request(0)))
+    assert time.perf_counter() - t0 < 5 and server.stats()["requests"] == 1
+    assert e.value.kind == "retry_after" and "asks to wait 3600 s, longer than max_retry_after_s (60 s)" in str(e.value)
+    # within the cap it is waited out
+    server.configure(faults={"rate": 0.0, "first_tries": 1, "kinds": ["429"], "retry_after_s": 0.3})
+    server.reset()
+    assert run(complete_once(cfg, iphyre_request(1))).retries == 1
+    arrivals = server.stats()["arrivals"]
+    assert arrivals[1] - arrivals[0] >= 0.3
+
+
+def test_a_dripped_body_is_cut_at_the_try_deadline(server):
+    """A 200 whose body arrives a byte a second: each try ends at request_s (the whole
+    response), and the request at its total deadline, retries included."""
+    server.configure(faults={"rate": 1.0, "kinds": ["drip"], "drip_s": 1.0})
+    cfg = local_config(server.url, "openai", timeouts={"request_s": 0.8, "total_s": 2.0},
+                       retry={"max_retries": 10, "base_delay_s": 0.01, "max_delay_s": 0.02})
+    t0 = time.perf_counter()
+    with pytest.raises(ModelError) as e:
+        run(complete_once(cfg, iphyre_request(0)))
+    took = time.perf_counter() - t0
+    assert e.value.kind in ("timeout", "deadline") and 1.9 < took < 3.0, (took, str(e.value))
+    assert "whole response" in str(e.value) or "2 s" in str(e.value)
+    assert 2 <= server.stats()["requests"] <= 3  # 0.8 s tries within 2 s
+
+
+def test_first_byte_deadline(server):
+    server.configure(faults={"first_tries": 1, "kinds": ["hang"], "hang_s": 30})
+    cfg = local_config(server.url, "openai", timeouts={"first_byte_s": 0.4, "request_s": 5.0},
+                       retry={"base_delay_s": 0.01})
+    t0 = time.perf_counter()
+    resp = run(complete_once(cfg, iphyre_request(2)))
+    assert resp.retries == 1 and 0.4 <= time.perf_counter() - t0 < 3
+
+
+def test_waiting_requests_are_counted(server):
+    """What the progress line shows: requests waiting for the rate limit and before a retry."""
+    server.configure(faults={"first_tries": 1, "kinds": ["429"], "retry_after_s": 1.0})
+    cfg = local_config(server.url, "openai", rate_limits={"requests_per_min": 60, "burst": 1},
+                       retry={"max_retry_after_s": 5})
+
+    async def go():
+        client = client_from_config(cfg)
+        seen = []
+        try:
+            calls = [asyncio.ensure_future(client.complete(iphyre_request(i))) for i in range(3)]
+            while not all(c.done() for c in calls):
+                seen.append(await client.activity())
+                await asyncio.sleep(0.05)
+            await asyncio.gather(*calls)
+            return seen, await client.activity()
+        finally:
+            await client.close()
+
+    seen, after = run(go())
+    assert max(a["rate_limited"] for a in seen) >= 1 and max(a["retrying"] for a in seen) >= 1
+    assert after == {"rate_limited": 0, "retrying": 0}
 
 
 def test_connection_refused_is_retried_then_model_error():
@@ -370,9 +428,13 @@ def test_fake_key_never_leaks(server, monkeypatch, caplog, capsys):
         assert run(complete_once(cfg, iphyre_request(0))).text  # the key is accepted
     # a wrong key: 401 fails at once, and the message does not echo any key
     monkeypatch.setenv("DEEPPHY_OTHER_KEY", FAKE_KEY[::-1])
-    with pytest.raises(ModelError) as e:
-        run(complete_once(local_config(server.url, "openai", api_key_env="DEEPPHY_OTHER_KEY"), iphyre_request(0)))
-    assert e.value.kind == "http_401" and e.value.retries == 0
+    for provider in ("openai", "anthropic", "gemini"):  # 401, 401, Gemini's 400 API_KEY_INVALID
+        cfg = local_config(server.url, provider, api_key_env="DEEPPHY_OTHER_KEY")
+        with pytest.raises(AccessDenied) as e:
+            run(complete_once(cfg, iphyre_request(0)))
+        assert e.value.kind == "denied" and e.value.retries == 0
+        assert f"model local-{provider} at {cfg.resolved_base_url} refused the key in $DEEPPHY_OTHER_KEY" in str(e.value)
+        seen += [str(e.value), repr(e.value)]
     seen += [str(e.value), repr(e.value)]
     # failures after retries
     server.configure(require_key_env=None, faults={"rate": 1.0, "kinds": ["500", "malformed", "hang"], "hang_s": 5})

@@ -39,7 +39,7 @@ def server():
 
 
 @pytest.fixture
-def models_file(server, tmp_path):
+def models_file(server, tmp_path_factory):
     def write(**extra) -> str:
         entry = {
             "name": "local", "provider": "openai", "model": "deepphy-mock", "base_url": server.url + "/v1",
@@ -49,7 +49,7 @@ def models_file(server, tmp_path):
             "price": {"input_per_mtok": 3.0, "output_per_mtok": 15.0},
             **extra,
         }
-        path = tmp_path / "models.yaml"
+        path = tmp_path_factory.mktemp("models") / "models.yaml"  # not in a run directory: --out refuses that
         path.write_text(yaml.safe_dump({"models": [entry]}))
         return str(path)
 

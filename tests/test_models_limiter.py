@@ -163,6 +163,23 @@ def test_ray_limiter_is_shared_by_model_workers(ray_cluster, server, tmp_path):
         with pytest.raises(ModelError) as e:
             ray.get(workers[0].complete.remote(iphyre_request(0, run=99)), timeout=RAY_TIMEOUT_S)
         assert e.value.retries == 3 and e.value.kind == "http_500"
+        server.configure(faults={"rate": 0.0})
+
+        # what the driver's progress line reads: requests of a worker waiting for the shared limit
+        from deepphy.scheduler import WorkerModel
+
+        async def watch():
+            model = WorkerModel(workers[0])
+            calls = [asyncio.ensure_future(model.complete(iphyre_request(i % 6, run=200 + i))) for i in range(12)]
+            seen = []
+            while not all(c.done() for c in calls):
+                seen.append(await model.activity())
+                await asyncio.sleep(0.02)
+            await asyncio.gather(*calls)
+            return seen, await model.activity()
+
+        seen, after = asyncio.run(watch())
+        assert max(a["rate_limited"] for a in seen) >= 4 and after == {"rate_limited": 0, "retrying": 0}
     finally:
         server.configure(faults={"rate": 0.0})
         for w in workers:

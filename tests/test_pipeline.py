@@ -78,6 +78,33 @@ def test_resume_after_a_cut_log_finishes_the_same_run(baseline, tmp_path):
     assert views(tmp_path) == views(baseline)
 
 
+def test_a_gap_in_an_episode_is_refused_then_repaired_and_the_resume_is_exact(baseline, tmp_path):
+    """A deleted line in the middle of an episode: the resume refuses (it used to number the
+    next attempt len+1 and write a second attempt of that number); `deepphy repair` keeps
+    the attempts before the gap and the resume finishes the same run."""
+    import shutil
+
+    from deepphy.cli import main
+    from deepphy.runs.store import RunDirError
+
+    shutil.copytree(baseline, tmp_path / "run")
+    log = tmp_path / "run" / ATTEMPTS
+    lines = log.read_bytes().splitlines(keepends=True)
+    records = read_records(baseline)
+    long_one = next(r for r in records if r.attempt == 4 and any(
+        (x.task, x.run, x.attempt) == (r.task, r.run, 5) for x in records))
+    gap = next(i for i, r in enumerate(records) if r.key == long_one.key)
+    log.write_bytes(b"".join(lines[:gap] + lines[gap + 1:]))  # attempt 4 gone, 5 still there
+    with pytest.raises(RunDirError, match=f"task {long_one.task} run {long_one.run} has attempts .*attempt 4 is missing"):
+        evaluate(CONFIG, tmp_path / "run", RUNTIME)
+    assert main(["report", str(tmp_path / "run")]) == 2  # a report would count the episode wrong
+    assert main(["repair", str(tmp_path / "run")]) == 0
+    outcome = evaluate(CONFIG, tmp_path / "run", RUNTIME)
+    assert outcome.complete
+    assert_complete(tmp_path / "run", CONFIG)
+    assert views(tmp_path / "run") == views(baseline)
+
+
 def test_resume_of_a_complete_run_adds_nothing(baseline, tmp_path):
     import shutil
 

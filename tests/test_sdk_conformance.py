@@ -36,7 +36,7 @@ from google.genai import types as gtypes
 from openai.types.chat.completion_create_params import CompletionCreateParamsNonStreaming
 from pydantic import ConfigDict, TypeAdapter
 
-from deepphy.models import ModelError, client_from_config
+from deepphy.models import AccessDenied, client_from_config
 from deepphy.agents import MockModel
 from deepphy.models.wire import ANTHROPIC_NO_SAMPLING_FROM, CONTEXT_HEADER, encode_context, parse_retry_after, text_tokens
 from deepphy.prompts import Message, PromptFormat
@@ -424,9 +424,10 @@ def test_our_clients_fail_at_once_on_each_providers_key_errors(server, monkeypat
     monkeypatch.setenv("DEEPPHY_SDK_WRONG_KEY", "sk-wrong")
     for key_env, status in ((None, missing), ("DEEPPHY_SDK_WRONG_KEY", wrong)):
         cfg = local_config(server.url, provider, api_key_env=key_env)
-        with pytest.raises(ModelError) as info:
+        with pytest.raises(AccessDenied) as info:  # stops the run: no retry, no re-queue
             run(complete_once(cfg, iphyre_request(0)))
-        assert (info.value.kind, info.value.retries) == (f"http_{status}", 0)
+        assert (info.value.kind, info.value.retries) == ("denied", 0) and f"HTTP {status}" in str(info.value)
+        assert ("$DEEPPHY_SDK_WRONG_KEY" if key_env else "no key (this entry has no api_key_env)") in str(info.value)
 
 
 # --- 2. our requests are the SDKs' requests -------------------------------------------------------

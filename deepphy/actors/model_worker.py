@@ -26,6 +26,10 @@ class ModelWorkerImpl:
     async def complete(self, request: ModelRequest) -> ModelResponse:
         return await self.client.complete(request)
 
+    async def activity(self) -> dict[str, int]:
+        """Requests waiting now for the rate limit and before a retry (for the progress line)."""
+        return await self.client.activity()
+
     async def close(self) -> None:
         """Close the client's connections (before the actor is killed at the end of a run)."""
         await self.client.close()

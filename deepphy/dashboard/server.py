@@ -1,17 +1,21 @@
 """The dashboard's web server (aiohttp): static page, JSON API, live updates over
 Server-Sent Events.
 
-Every run directory is polled (stat, then only the new whole lines of its log); when a run
+Every run directory is polled by a loop and a thread of its own (stat, then only the new
+whole lines of its log), so a huge or broken run does not hold up the others; when a run
 changed, its view (card, curve, report table) is recomputed, throttled for large runs, and
 pushed to every open page with the grid cells that changed. With a Ray address, the runs
 live on that cluster are found by their metrics actors and their run directories added.
+Who may read it: `guard` (a loopback Host without a token; the token beyond loopback).
 """
 
 from __future__ import annotations
 
 import asyncio
+import ipaddress
 import json
 import logging
+import secrets
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -36,30 +40,55 @@ CLIENT_BACKLOG = 200  # messages queued for a page that does not read; then it i
 class Dashboard:
     def __init__(self, sources: list[RunSource], roots: list[Path] = (), address: str | None = None,
                  poll_s: float = POLL_S) -> None:
-        self.sources: dict[str, RunSource] = {s.id: s for s in sources}
+        self.sources: dict[str, RunSource] = {}
         # Directories that are not (yet) run directories: a run started into one, or a run
         # directory created inside one, joins the page when it appears.
         self.roots = [Path(r).resolve() for r in roots]
         self._unreadable: set[Path] = set()
         self.address = address
         self.poll_s = poll_s
-        self.views: dict[str, dict[str, Any]] = {}  # latest view per run, in the order runs were added
+        self.views: dict[str, dict[str, Any]] = {}  # latest view per run
+        # Runs load side by side, so their first views arrive in any order; each view carries
+        # the place of its run (as given, then as found) and the page keeps that order.
+        self._order: dict[str, int] = {}
         self.live_only: dict[str, dict[str, Any]] = {}  # Ray run id -> view, when its directory is not readable
         self.clients: set[asyncio.Queue] = set()
-        # RunSource is not thread-safe: every call on one goes through this single thread.
-        self.executor = ThreadPoolExecutor(1, thread_name_prefix="dashboard-runs")
+        # Each run has a thread of its own (RunSource is not thread-safe, and a huge or broken
+        # run must not hold up the others' polls and API calls); finding runs has another.
+        self.executor = ThreadPoolExecutor(1, thread_name_prefix="dashboard-find")
+        self._threads: dict[str, ThreadPoolExecutor] = {}
         self._pending: dict[str, set | None] = {}  # run id -> changed cells not yet sent (None: all)
         self._sent_at: dict[str, float] = {}
         self._cost: dict[str, float] = {}  # seconds the last view took: throttles large runs
         self._tasks: list[asyncio.Task] = []
+        self._started = False
+        for source in sources:
+            self._add(source)
 
-    async def _call(self, fn, *args):
-        return await asyncio.get_running_loop().run_in_executor(self.executor, fn, *args)
+    def _place(self, view: dict[str, Any]) -> dict[str, Any]:
+        view["order"] = self._order.setdefault(view["id"], len(self._order))
+        self.views[view["id"]] = view
+        return view
+
+    def _add(self, source: RunSource) -> None:
+        self._order.setdefault(source.id, len(self._order))
+        self.sources[source.id] = source
+        self._threads[source.id] = ThreadPoolExecutor(1, thread_name_prefix=f"dashboard-{source.id}")
+        if self._started:
+            self._tasks.append(asyncio.create_task(self._run_loop(source)))
+
+    async def _call(self, source: RunSource | None, fn, *args):
+        """`fn(*args)` on `source`'s thread (None: the thread that finds runs)."""
+        executor = self.executor if source is None else self._threads[source.id]
+        return await asyncio.get_running_loop().run_in_executor(executor, fn, *args)
 
     # -- lifecycle ----------------------------------------------------------------------
 
     async def start(self, app: web.Application) -> None:
-        self._tasks.append(asyncio.create_task(self._poll_loop()))
+        self._started = True
+        self._tasks += [asyncio.create_task(self._run_loop(s)) for s in self.sources.values()]
+        if self.roots:
+            self._tasks.append(asyncio.create_task(self._scan_loop()))
         if self.address:
             self._tasks.append(asyncio.create_task(self._live_loop()))
 
@@ -69,26 +98,28 @@ class Dashboard:
         await asyncio.gather(*self._tasks, return_exceptions=True)
         for q in list(self.clients):
             q.put_nowait(None)
-        self.executor.shutdown(wait=False, cancel_futures=True)
+        for executor in [self.executor, *self._threads.values()]:
+            executor.shutdown(wait=False, cancel_futures=True)
 
     # -- updates ------------------------------------------------------------------------
 
-    async def _poll_loop(self) -> None:
-        next_scan = 0.0
+    async def _scan_loop(self) -> None:
+        while True:
+            await self._scan_roots()
+            await asyncio.sleep(SCAN_S)
+
+    async def _run_loop(self, source: RunSource) -> None:
+        """Poll one run, at its own pace."""
         while True:
             started = time.monotonic()
-            if self.roots and started >= next_scan:
-                await self._scan_roots()
-                next_scan = started + SCAN_S
-            for source in list(self.sources.values()):
-                try:
-                    await self._poll(source)
-                except Exception:  # noqa: BLE001 - one bad run must not stop the others
-                    log.exception("polling %s", source.path)
+            try:
+                await self._poll(source)
+            except Exception:  # noqa: BLE001 - a bad moment of one run; try again
+                log.exception("polling %s", source.path)
             await asyncio.sleep(max(0.05, self.poll_s - (time.monotonic() - started)))
 
     async def _poll(self, source: RunSource) -> None:
-        changed = await self._call(source.poll)
+        changed = await self._call(source, source.poll)
         pending = self._pending.setdefault(source.id, set())
         if changed is None or pending is None:
             self._pending[source.id] = None
@@ -103,38 +134,38 @@ class Dashboard:
         if not (dirty and since >= 2 * self._cost.get(source.id, 0.0)) and not (live and since >= REFRESH_S):
             return
         t0 = time.monotonic()
-        view = await self._call(source.view)
+        view = await self._call(source, source.view)
         self._cost[source.id] = time.monotonic() - t0
         keys = self._pending[source.id]
         reset = keys is None or len(keys) > MAX_CELL_DELTA
-        cells = [] if reset else await self._call(source.cells, keys)
+        cells = [] if reset else await self._call(source, source.cells, keys)
         self._pending[source.id] = set()
         self._sent_at[source.id] = time.monotonic()
-        self.views[source.id] = view
+        self._place(view)
         self._broadcast({"type": "run", "run": view, "cells": cells, "grid_reset": reset})
 
     async def _scan_roots(self) -> None:
         known = {s.path for s in self.sources.values()}
         removed = False
         for root in self.roots:
-            found = await self._call(runs_in, root)
+            found = await self._call(None, runs_in, root)
             for path in found:
                 if path in known or path in self._unreadable:
                     continue
                 try:
-                    source = await self._call(RunSource, path)
+                    source = await self._call(None, RunSource, path)
                 except Exception as e:  # noqa: BLE001 - say so once, keep the others going
                     log.warning("cannot show %s: %s", path, e)
                     self._unreadable.add(path)
                     continue
-                self.sources[source.id] = source  # its first view goes out with the next poll
+                self._add(source)  # its first view goes out with its first poll
                 known.add(path)
             waiting = f"wait-{run_id(root)}"
             if found and waiting in self.views:
                 del self.views[waiting]
                 removed = True
             elif not found and waiting not in self.views:
-                self.views[waiting] = waiting_view(waiting, root)
+                self._place(waiting_view(waiting, root))
                 self._broadcast({"type": "run", "run": self.views[waiting], "cells": [], "grid_reset": False})
         if removed:  # pages drop the placeholder by taking the whole state again
             data = sse("state", self.state())
@@ -161,18 +192,19 @@ class Dashboard:
             path = str(Path(run_dir).resolve()) if run_dir else None
             if path and path not in by_path and is_run_dir(Path(path)):
                 try:
-                    source = await self._call(RunSource, path)
+                    source = await self._call(None, RunSource, path)
                 except Exception:  # noqa: BLE001 - unreadable here: show the snapshot only
                     log.warning("cannot read the run directory %s of live run %s", path, ray_id)
                 else:
-                    self.sources[source.id] = by_path[path] = source
+                    self._add(source)
+                    by_path[path] = source
             if path in by_path:
                 by_path[path].snapshot = snap
                 found.add(by_path[path].id)
                 self.live_only.pop(ray_id, None)
             else:
                 view = live_only_view(ray_id, snap)
-                self.live_only[ray_id] = self.views[view["id"]] = view
+                self.live_only[ray_id] = self._place(view)
                 self._broadcast({"type": "run", "run": view, "cells": [], "grid_reset": False})
         for source in self.sources.values():
             if source.id not in found:
@@ -194,7 +226,7 @@ class Dashboard:
     # -- HTTP ---------------------------------------------------------------------------
 
     def state(self) -> dict[str, Any]:
-        return {"runs": list(self.views.values()), "address": self.address}
+        return {"runs": sorted(self.views.values(), key=lambda v: v["order"]), "address": self.address}
 
     async def index(self, request: web.Request) -> web.StreamResponse:
         return web.FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-cache"})
@@ -210,7 +242,7 @@ class Dashboard:
 
     async def api_report(self, request: web.Request) -> web.Response:
         source = self._source(request)
-        return web.json_response(await self._call(source.report))
+        return web.json_response(await self._call(source, source.report))
 
     async def api_grid(self, request: web.Request) -> web.Response:
         source = self._source(request)
@@ -219,13 +251,13 @@ class Dashboard:
         except ValueError:
             raise web.HTTPBadRequest(text="page must be an integer") from None
         group = request.query.get("group") or None
-        return web.json_response(await self._call(source.grid, page, group))
+        return web.json_response(await self._call(source, source.grid, page, group))
 
     async def api_episode(self, request: web.Request) -> web.Response:
         source = self._source(request)
         try:
             task, run = request.query["task"], int(request.query["run"])
-            return web.json_response(await self._call(source.episode, task, run))
+            return web.json_response(await self._call(source, source.episode, task, run))
         except (KeyError, ValueError) as e:
             raise web.HTTPNotFound(text=f"no such episode: {e}") from None
 
@@ -299,8 +331,49 @@ def waiting_view(view_id: str, root: Path) -> dict[str, Any]:
     }
 
 
-def make_app(dashboard: Dashboard) -> web.Application:
-    app = web.Application()
+TOKEN_COOKIE = "deepphy_dashboard_token"
+TOKEN_ENV = "DEEPPHY_DASHBOARD_TOKEN"  # a fixed token, instead of a new one at every start
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def guard(token: str | None):
+    """Who may read the dashboard. Without a token (listening on loopback only): requests
+    whose Host is a loopback name, so that a web page elsewhere cannot read it through a
+    name that resolves to 127.0.0.1 (DNS rebinding). With one (listening beyond loopback):
+    requests that carry it, as `?token=` (the printed URL; then kept in a cookie for the
+    page's own requests), the cookie, or `Authorization: Bearer`."""
+
+    @web.middleware
+    async def check(request: web.Request, handler):
+        if token is None:
+            if not is_loopback(request.url.host or ""):
+                raise web.HTTPForbidden(text="this dashboard answers only to a loopback Host "
+                                             "(127.0.0.1 or localhost)")
+            return await handler(request)
+        bearer = request.headers.get("Authorization", "").removeprefix("Bearer ").strip()
+        given = request.query.get("token") or request.cookies.get(TOKEN_COOKIE) or bearer
+        if not secrets.compare_digest(given.encode(), token.encode()):
+            raise web.HTTPUnauthorized(text="this dashboard needs its access token: open the URL it printed")
+        if "token" in request.query and request.method == "GET" and request.path == "/":
+            response = web.HTTPFound("/")  # the token leaves the address bar for a cookie
+            response.set_cookie(TOKEN_COOKIE, token, httponly=True, samesite="Strict", path="/")
+            raise response
+        return await handler(request)
+
+    return check
+
+
+def make_app(dashboard: Dashboard, token: str | None = None) -> web.Application:
+    """`token`: required of every request (see `guard`); None serves loopback Hosts only."""
+    app = web.Application(middlewares=[guard(token)])
     app.add_routes([
         web.get("/", dashboard.index),
         web.get("/api/state", dashboard.api_state),
@@ -316,15 +389,15 @@ def make_app(dashboard: Dashboard) -> web.Application:
     return app
 
 
-async def serve(dashboard: Dashboard, host: str, port: int, announce) -> None:
+async def serve(dashboard: Dashboard, host: str, port: int, announce, token: str | None = None) -> None:
     """Serve until cancelled; `announce(url)` is called once the socket listens."""
-    runner = web.AppRunner(make_app(dashboard), access_log=None)
+    runner = web.AppRunner(make_app(dashboard, token), access_log=None)
     await runner.setup()
     site = web.TCPSite(runner, host, port)
     await site.start()
     bound = runner.addresses[0]
     shown = f"[{bound[0]}]" if ":" in bound[0] else bound[0]
-    announce(f"http://{shown}:{bound[1]}/")
+    announce(f"http://{shown}:{bound[1]}/" + (f"?token={token}" if token else ""))
     try:
         await asyncio.Event().wait()
     finally:

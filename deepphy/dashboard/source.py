@@ -22,11 +22,13 @@ from deepphy.metrics import figures as F
 from deepphy.metrics.report import build_report, setting, table, table_key
 from deepphy.runs.records import AttemptRecord
 from deepphy.runs.status import read_status, writer_holds_lock
-from deepphy.runs.store import ATTEMPTS, CONFIG, read_config
+from deepphy.runs.store import ATTEMPTS, CONFIG, FRAMES, PROMPTS, inside, is_stored_prompt, read_config
 
 # Bytes of the log consumed per poll: a huge log loads in slices, so the page shows
 # progress and other requests get a turn between them.
 READ_CHUNK = 8 * 1024 * 1024
+SCAN_CHUNK = 1024 * 1024  # looking for the end of a line
+MAX_LINE = 16 * 1024 * 1024  # a record is at most ~1 MB (replies are cut at 32,768 characters)
 RATE_WINDOW_S = 60.0  # attempts/s and ETA of a live run: over the records of the last minute
 GRID_PAGE = 200  # tasks per grid page
 RUN_SEARCH_DEPTH = 3  # how many folders below a directory given to the dashboard its runs are looked for
@@ -41,20 +43,39 @@ def is_run_dir(path: Path) -> bool:
     return (path / CONFIG).is_file()
 
 
-def read_whole_lines(log: Path, offset: int, limit: int = READ_CHUNK) -> tuple[list[bytes], int]:
-    """The complete lines after `offset` (at most about `limit` bytes) and the offset after
-    them. A partial last line, still being written, stays unread."""
-    with open(log, "rb") as f:
-        f.seek(offset)
-        data = f.read(limit)
-        if len(data) == limit:  # finish the line we cut into
-            while (more := f.read(64 * 1024)) and b"\n" not in more:
-                data += more
-            data += more
-    end = data.rfind(b"\n")
-    if end < 0:
-        return [], offset
-    return data[:end].split(b"\n"), offset + end + 1
+class LogTail:
+    """The attempt log read by byte offset, whole lines only, in time linear in its size: each
+    byte is looked at a bounded number of times, however long its line. A line longer than
+    MAX_LINE (no record comes near it) comes back as None, skipped without being held; a
+    line still being written stays unread."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.offset = 0  # everything before it has been returned
+        self._scanned = 0  # no newline in [offset, _scanned)
+
+    def read(self, limit: int = READ_CHUNK) -> list[bytes | None]:
+        """The next complete lines (about `limit` bytes, more to finish one long line)."""
+        with open(self.path, "rb") as f:
+            f.seek(self._scanned)
+            while True:  # the end of the next line
+                chunk = f.read(SCAN_CHUNK)
+                if not chunk:
+                    return []  # being written
+                newline = chunk.find(b"\n")
+                if newline >= 0:
+                    break
+                self._scanned += len(chunk)
+            line_end = self._scanned + newline
+            if line_end - self.offset > MAX_LINE:
+                self.offset = self._scanned = line_end + 1
+                return [None]
+            f.seek(self.offset)
+            data = f.read(max(limit, line_end + 1 - self.offset))
+        end = data.rfind(b"\n")
+        self.offset += end + 1
+        self._scanned = self.offset
+        return data[:end].split(b"\n")
 
 
 @dataclass
@@ -82,7 +103,7 @@ class RunSource:
         self.task_index = {t.id: i for i, t in enumerate(self.tasks)}
         self.records: list[AttemptRecord] = []
         self.episodes: dict[tuple[str, int], dict[int, AttemptRecord]] = {}
-        self.offset = 0
+        self.tail = LogTail(self.path / ATTEMPTS)
         self.inode: int | None = None
         self.log_size = 0
         self.errors: list[str] = []
@@ -107,16 +128,22 @@ class RunSource:
             return set()
         reset = self.inode is not None and (st.st_ino != self.inode or st.st_size < self.offset)
         if reset:  # a different log (the directory was recreated): start over
-            self.records, self.episodes, self.offset, self.errors, self._cells = [], {}, 0, [], {}
+            self.records, self.episodes, self.errors, self._cells = [], {}, [], {}
+            self.tail = LogTail(log)
             self._finished, self._first_started, self._episode_ends = [], None, {}
             self.version += 1
         self.inode, self.log_size = st.st_ino, st.st_size
         if st.st_size == self.offset:
             return None if reset else set()
         at = self.offset
-        lines, self.offset = read_whole_lines(log, self.offset)
+        lines = self.tail.read()
         changed: set[tuple[str, int]] = set()
         for line in lines:
+            if line is None:
+                at = self.offset  # the skipped line's end
+                self.errors.append(f"{log}: the line ending at byte {at} is longer than {MAX_LINE >> 20} MiB, "
+                                   "larger than any record (skipped)")
+                continue
             at += len(line) + 1
             if not line.strip():
                 continue
@@ -125,8 +152,13 @@ class RunSource:
             except ValidationError:
                 self.errors.append(f"{log}: the line ending at byte {at} is not a valid attempt record (skipped)")
                 continue
+            attempts = self.episodes.setdefault((record.task, record.run), {})
+            if record.attempt in attempts:  # shown once; `deepphy report` refuses the directory
+                self.errors.append(f"{log}: attempt {record.attempt} of task {record.task} run {record.run} is "
+                                   f"recorded twice (the line ending at byte {at}); see `deepphy repair`")
+                continue
             self.records.append(record)
-            self.episodes.setdefault((record.task, record.run), {})[record.attempt] = record
+            attempts[record.attempt] = record
             changed.add((record.task, record.run))
             if record.timing.finished:
                 bisect.insort(self._finished, record.timing.finished)
@@ -144,6 +176,10 @@ class RunSource:
     def label(self) -> str:
         c = self.config
         return setting({"model": c.model, "format": c.format.value, "env_options": c.env_options})
+
+    @property
+    def offset(self) -> int:
+        return self.tail.offset
 
     @property
     def loading(self) -> bool:
@@ -271,32 +307,37 @@ class RunSource:
         """The prompt's messages; each image placeholder resolved to its stored file when it
         is one (history key frames are stored under frames/<task>/ by their file name; the
         current observation's images are not stored)."""
+        path = inside(self.path, f"{PROMPTS}/{digest}.json")  # the digest is a validated record's
         try:
-            messages = json.loads((self.path / "prompts" / f"{digest}.json").read_text())
-        except (OSError, ValueError):
+            messages = json.loads(path.read_text()) if path is not None else None
+        except (OSError, ValueError, RecursionError):
+            return None
+        if not is_stored_prompt(messages):  # a hand-edited or foreign file: shown as missing
             return None
         out = []
         for m in messages:
             parts = []
-            for text in m.get("content", []):
+            for text in m["content"]:
                 image = _IMAGE.match(text) if isinstance(text, str) else None
                 if image is None:
                     parts.append({"type": "text", "text": text})
                     continue
                 name, caption = image.groups()
-                stored = "/" not in name and name not in ("", ".", "..") and (self.path / "frames" / task / name).is_file()
+                frame = inside(self.path, f"{FRAMES}/{task}/{name}") if "/" not in name else None
+                stored = frame is not None and frame.parent == self.path / FRAMES / task and frame.is_file()
                 parts.append({"type": "image", "name": name, "caption": caption,
                               "file": f"frames/{task}/{name}" if stored else None})
             out.append({"role": m.get("role"), "content": parts})
         return out
 
     def frame_path(self, rel: str) -> Path | None:
-        """A stored image under frames/, or None (nothing outside it is served)."""
-        target = (self.path / rel).resolve()
-        frames = self.path / "frames"
-        if target.suffix != ".png" or not target.is_relative_to(frames.resolve()) or not target.is_file():
+        """A stored image under frames/ of this run directory (resolved inside it: symlinks
+        out of the directory are not followed), or None."""
+        target = inside(self.path, rel)
+        if target is None or target.suffix != ".png" or not target.is_relative_to(self.path / FRAMES):
             return None
-        return target
+        return target if target.is_file() else None
+
 
 
 def runs_in(path: Path, depth: int = RUN_SEARCH_DEPTH) -> list[Path]:

@@ -20,6 +20,7 @@ Environments know nothing of Ray, prompts or models.
 from __future__ import annotations
 
 import functools
+import re
 from abc import ABC, abstractmethod
 from collections import OrderedDict
 from enum import Enum
@@ -44,8 +45,12 @@ class InvalidAction(ValueError):
     """Model text that is not a valid action. The message is the recorded reason."""
 
 
+# What a task id may be: it names directories of run directories (frames/<task>/).
+SAFE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$")
+
+
 class Task(BaseModel):
-    """One benchmark task. `id` is unique within its environment and filesystem-safe."""
+    """One benchmark task. `id` is unique within its environment and filesystem-safe (SAFE_ID)."""
 
     model_config = ConfigDict(frozen=True)
 

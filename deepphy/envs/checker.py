@@ -24,18 +24,14 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import re
 import subprocess
 import sys
 from typing import Any, Sequence
 
 from deepphy.chat import PromptFormat
-from deepphy.envs.base import Action, ActionSpace, EnvOptions, Environment, Observation, StepResult, Task
+from deepphy.envs.base import SAFE_ID, Action, ActionSpace, EnvOptions, Environment, Observation, StepResult, Task
 from deepphy.envs.spec import EnvSpec
 from deepphy.seeding import seeded_rng
-
-SAFE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$")
-
 
 def check_env(spec: EnvSpec, options: EnvOptions | None = None, *, tasks_checked: int = 2,
               fresh_process: bool = True) -> list[str]:

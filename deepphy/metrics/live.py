@@ -97,6 +97,10 @@ def format_progress(s: dict[str, Any]) -> str:
         parts.append(f"invalid {s['invalid_attempts']}")
     if s["model_errors"] or s["retries"]:
         parts.append(f"model errors {s['model_errors']} · retries {s['retries']}")
+    waiting = [f"{n} {what}" for what, n in (("for the rate limit", s.get("rate_limited", 0)),
+                                             ("to retry", s.get("retrying", 0))) if n]
+    if waiting:
+        parts.append("waiting " + ", ".join(waiting))
     if s.get("errored"):
         parts.append(f"errored {s['errored']}")
     if s["input_tokens"]:

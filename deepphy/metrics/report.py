@@ -134,11 +134,13 @@ def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[Att
 def report_of(run_dir) -> dict[str, Any]:
     """The report of one run directory, as `deepphy report --json` prints it."""
     from deepphy.runner import resolve
-    from deepphy.runs.store import read_config, read_records
+    from deepphy.runs.store import check_records, read_config, read_records
 
     config = read_config(run_dir)
     _, tasks, k_max = resolve(config)
-    return build_report(config, tasks, read_records(run_dir), k_max)
+    records = read_records(run_dir)
+    check_records(run_dir, records, k_max, frames=False)  # a duplicated or missing attempt would skew every figure
+    return build_report(config, tasks, records, k_max)
 
 
 def mixed_task_sets(reports: Sequence[dict[str, Any]]) -> str | None:

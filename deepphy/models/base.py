@@ -70,6 +70,11 @@ class ModelError(RuntimeError):
         return (_rebuild_model_error, (type(self), str(self), self.retries, self.kind))
 
 
+class AccessDenied(ModelError):
+    """The endpoint refused the key (authentication or permission): no retry, no re-queue;
+    the run stops. The message names the endpoint and the key's variable, never the key."""
+
+
 def _rebuild_model_error(cls: type, message: str, retries: int, kind: str) -> "ModelError":
     return cls(message, retries=retries, kind=kind)
 
@@ -82,3 +87,7 @@ class ModelClient(ABC):
 
     async def close(self) -> None:
         """Release connections."""
+
+    async def activity(self) -> dict[str, int]:
+        """Requests waiting now: for the rate limit (`rate_limited`), before a retry (`retrying`)."""
+        return {"rate_limited": 0, "retrying": 0}

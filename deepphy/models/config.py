@@ -77,8 +77,19 @@ class RateLimits(_Strict):
 
 
 class Timeouts(_Strict):
-    connect_s: float = Field(10.0, gt=0)
-    request_s: float = Field(120.0, gt=0, description="one HTTP try, from send to the full response")
+    """Deadlines of a request. Every try is bounded by all three of its own and by what is left
+    of `total_s`; a request never takes longer than `total_s`, retries and waits included."""
+
+    connect_s: float = Field(10.0, gt=0, description="TCP (and TLS) connection")
+    first_byte_s: float | None = Field(None, gt=0, description="from send to the response's status line (a "
+                                       "provider computes the whole answer first); default request_s")
+    request_s: float = Field(120.0, gt=0, description="one HTTP try, from send to the full response body")
+    total_s: float | None = Field(None, gt=0, description="the whole request, every try and wait included; "
+                                  "default 3 x request_s")
+
+    @property
+    def deadline_s(self) -> float:
+        return self.total_s if self.total_s is not None else 3 * self.request_s
 
 
 class RetryPolicy(_Strict):
@@ -88,7 +99,9 @@ class RetryPolicy(_Strict):
     max_retries: int = Field(5, ge=0)
     base_delay_s: float = Field(1.0, ge=0)
     max_delay_s: float = Field(60.0, ge=0)
-    max_retry_after_s: float = Field(120.0, ge=0, description="a longer Retry-After is cut to this")
+    max_retry_after_s: float = Field(
+        120.0, ge=0, description="the longest Retry-After (or Gemini RetryInfo delay) honoured; an endpoint that "
+        "asks for a longer wait fails the request at once (a model error: the attempt is re-queued)")
 
 
 class Pricing(_Strict):

@@ -1,4 +1,4 @@
-"""The HTTP client shared by all providers: limiter, retries, usage and cost, secrecy.
+"""The HTTP client shared by all providers: limiter, retries, deadlines, usage and cost, secrecy.
 
 A provider subclass says only how to build its request and read its response
 (deepphy/models/providers.py). Everything else is here:
@@ -7,11 +7,15 @@ A provider subclass says only how to build its request and read its response
 - every HTTP try takes a grant from the endpoint's limiter and returns it with the tokens
   actually used. The limiter is injected: the model worker passes the cluster-wide Ray
   limiter; by default a client limits itself in-process (`LocalLimiter`);
+- deadlines (config `timeouts`): every try is bounded by its connection, its first byte
+  (the status line) and its whole body, and by what is left of the request's total, so a
+  request never takes longer than `timeouts.deadline_s`, retries and waits included;
 - retries with exponential backoff and jitter on 429, 408, 409, 5xx, timeouts,
   connection errors and unusable 200s (malformed JSON, no choices); `Retry-After` /
-  `retry-after-ms` (Gemini: RetryInfo in the error body) is honoured (capped at
-  max_retry_after_s); at most max_retries; then `ModelError(retries=..., kind=...)`.
-  Other 4xx fail at once;
+  `retry-after-ms` (Gemini: RetryInfo in the error body) is honoured up to
+  max_retry_after_s: an endpoint that asks for longer fails the request at once; at most
+  max_retries; then `ModelError(retries=..., kind=...)`. Other 4xx fail at once; a
+  refused key (401, 403, Gemini's API_KEY_INVALID) is `AccessDenied`, which stops the run;
 - the key is read from the environment, held as a SecretStr, never pickled, never in
   repr, and scrubbed from every error text.
 """
@@ -21,13 +25,15 @@ from __future__ import annotations
 import asyncio
 import json
 import random
+import time
+from collections import Counter
 from typing import Any
 
 import aiohttp
 from pydantic import SecretStr
 
 from deepphy.chat import Message
-from deepphy.models.base import ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext, Usage
+from deepphy.models.base import AccessDenied, ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext, Usage
 from deepphy.models.config import ModelConfig
 from deepphy.models.limiter import Limiter, LocalLimiter
 from deepphy.models.wire import (
@@ -36,6 +42,7 @@ from deepphy.models.wire import (
 from deepphy.seeding import seeded_rng
 
 RETRYABLE_STATUS = {408, 409, 429}  # plus every 5xx (Anthropic's 529 "overloaded" included)
+DENIED_STATUS = {401, 403}  # and Gemini's 400 with reason API_KEY_INVALID
 
 
 class EmptyReply(ValueError):
@@ -68,6 +75,7 @@ class HTTPModelClient(ModelClient):
         self._session: aiohttp.ClientSession | None = None
         self._session_loop: asyncio.AbstractEventLoop | None = None
         self._rng = random.Random()
+        self._waiting: Counter[str] = Counter()  # requests waiting now: "rate_limited", "retrying"
 
     # --- what a provider supplies -------------------------------------------------------
 
@@ -114,7 +122,7 @@ class HTTPModelClient(ModelClient):
             t = self.config.timeouts
             self._session = aiohttp.ClientSession(
                 connector=aiohttp.TCPConnector(limit=self.config.rate_limits.max_concurrent or 0),
-                timeout=aiohttp.ClientTimeout(total=t.request_s, sock_connect=t.connect_s),
+                timeout=aiohttp.ClientTimeout(total=None, sock_connect=t.connect_s),  # the rest: _try
             )
             self._session_loop = loop
         return self._session
@@ -124,26 +132,42 @@ class HTTPModelClient(ModelClient):
             await self._session.close()
         self._session = None
 
+    async def activity(self) -> dict[str, int]:
+        return {"rate_limited": self._waiting["rate_limited"], "retrying": self._waiting["retrying"]}
+
     def _delay(self, retry: int, retry_after: float | None) -> float:
         p = self.config.retry
         if retry_after is not None:
-            return min(retry_after, p.max_retry_after_s) * (1 + 0.1 * self._rng.random())
+            return retry_after * (1 + 0.1 * self._rng.random())
         cap = min(p.max_delay_s, p.base_delay_s * 2**retry)
         return cap * (0.5 + 0.5 * self._rng.random())
 
-    async def _try(self, session: aiohttp.ClientSession, url: str, payload: bytes, headers: dict[str, str]):
+    async def _try(self, session: aiohttp.ClientSession, url: str, payload: bytes, headers: dict[str, str],
+                   left_s: float):
+        """One try, bounded by the first byte, the whole response and `left_s` of the request."""
         t = self.config.timeouts
+        whole = min(t.request_s, left_s)
+        first = min(t.first_byte_s or t.request_s, whole)
+        phase = "first byte"
+        started = time.monotonic()
         try:
-            async with session.post(url, data=payload, headers=headers) as resp:
-                raw = await resp.read()
-                status, rheaders = resp.status, resp.headers
+            async with asyncio.timeout(whole):
+                async with asyncio.timeout(first):
+                    resp = await session.post(url, data=payload, headers=headers)
+                phase = "whole response"
+                async with resp:
+                    raw = await resp.read()
+                    status, rheaders = resp.status, resp.headers
         except TimeoutError:
-            raise _Failure("timeout", f"no complete response within {t.request_s:g} s", True) from None
+            took = time.monotonic() - started
+            raise _Failure("timeout", f"no {phase} within {took:.3g} s", True) from None
         except aiohttp.ClientError as e:
             raise _Failure("connection", f"connection error: {type(e).__name__}: {self._redact(str(e))[:200]}", True) from None
         if status != 200:
-            retryable = status in RETRYABLE_STATUS or status >= 500
             snippet = self._redact(raw[:300].decode("utf-8", "replace")).replace("\n", " ")
+            if status in DENIED_STATUS or (status == 400 and b"API_KEY_INVALID" in raw):
+                raise _Failure("denied", f"HTTP {status}: {snippet}", False)
+            retryable = status in RETRYABLE_STATUS or status >= 500
             raise _Failure(f"http_{status}", f"HTTP {status}: {snippet}", retryable, parse_retry_after(rheaders, body=raw))
         try:
             data = json.loads(raw)
@@ -174,20 +198,36 @@ class HTTPModelClient(ModelClient):
         lease_s = cfg.timeouts.request_s + cfg.timeouts.connect_s + 30.0
         session = self._get_session()
         url = self.url()
+        deadline = time.monotonic() + cfg.timeouts.deadline_s
         retries = 0
         while True:
-            grant = await limiter.acquire(estimate_in + max_tokens, lease_s) if limiter is not None else None
+            grant = None
+            if limiter is not None:
+                self._waiting["rate_limited"] += 1
+                try:
+                    grant = await limiter.acquire(estimate_in + max_tokens, lease_s)
+                finally:
+                    self._waiting["rate_limited"] -= 1
             used = estimate_in + max_tokens
             try:
-                text, tin, tout = await self._try(session, url, payload, headers)
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise _Failure("deadline", f"no answer within the request's {cfg.timeouts.deadline_s:g} s", False)
+                text, tin, tout = await self._try(session, url, payload, headers, left)
                 tin = tin if tin is not None else estimate_in
                 tout = tout if tout is not None else 0
                 used = tin + tout
             except _Failure as f:
-                if not f.retryable or retries >= cfg.retry.max_retries:
-                    note = f" (after {retries} retries)" if retries else ""
+                note = f" (after {retries} retries)" if retries else ""
+                if f.kind == "denied":
+                    raise self._denied(f.message) from None
+                if f.retry_after is not None and f.retry_after > cfg.retry.max_retry_after_s:
+                    raise ModelError(f"{self.name}: {f.message} asks to wait {f.retry_after:g} s, longer than "
+                                     f"max_retry_after_s ({cfg.retry.max_retry_after_s:g} s){note}",
+                                     retries=retries, kind="retry_after") from None
+                delay = self._delay(retries, f.retry_after) if f.retryable else 0.0
+                if not f.retryable or retries >= cfg.retry.max_retries or time.monotonic() + delay >= deadline:
                     raise ModelError(f"{self.name}: {f.message}{note}", retries=retries, kind=f.kind) from None
-                delay = self._delay(retries, f.retry_after)
             else:
                 return ModelResponse(
                     text=text,
@@ -199,4 +239,15 @@ class HTTPModelClient(ModelClient):
                 if grant is not None:
                     await limiter.release(grant, used)
             retries += 1
-            await asyncio.sleep(delay)
+            self._waiting["retrying"] += 1
+            try:
+                await asyncio.sleep(delay)
+            finally:
+                self._waiting["retrying"] -= 1
+
+    def _denied(self, message: str) -> AccessDenied:
+        cfg = self.config
+        key = (f"the key in ${cfg.api_key_env}" if cfg.api_key_env
+               else "no key (this entry has no api_key_env)")
+        return AccessDenied(f"model {self.name} at {cfg.resolved_base_url} refused {key}: {message}; "
+                            "check the key and its permissions for this model", kind="denied")

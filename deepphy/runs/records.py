@@ -7,13 +7,19 @@ from typing import Any, Sequence
 from pydantic import BaseModel, Field
 
 from deepphy.chat import Usage
+from deepphy.envs.base import SAFE_ID
+
+# A record names files of its run directory; these patterns keep it to its own kinds of file
+# (the store also resolves every path it reads inside the directory: symlinks cannot lead out).
+DIGEST = r"^[0-9a-f]{8,64}$"  # prompt_digest: prompts/<digest>.json
+FRAME = r"^frames/" + SAFE_ID.pattern[1:-1] + r"/[A-Za-z0-9][A-Za-z0-9._-]{0,200}\.png$"  # frames/<task>/<file>.png
 
 
 class StepRecord(BaseModel):
     """One decision: what was asked, what came back, what it did."""
 
-    step: int
-    prompt: str  # digest of the prompt; its text is in prompts/<digest>.json
+    step: int = Field(ge=1)
+    prompt: str = Field(pattern=DIGEST)  # digest of the prompt; its text is in prompts/<digest>.json
     raw_output: str  # the reply, cut to its last MAX_REPLY_CHARS characters (deepphy/envs/parsing.py)
     reply_cut: int = 0  # characters cut from the start of an over-long reply
     prediction: str | None = None  # WM format only
@@ -28,7 +34,7 @@ class StepRecord(BaseModel):
 
 
 class KeyFrame(BaseModel):
-    path: str  # relative to the run directory
+    path: str = Field(pattern=FRAME)  # relative to the run directory
     caption: str
 
 
@@ -52,10 +58,10 @@ class ModelStats(BaseModel):
 
 class AttemptRecord(BaseModel):
     env: str
-    task: str
+    task: str = Field(pattern=SAFE_ID.pattern)
     group: str = ""
-    run: int
-    attempt: int  # 1-based
+    run: int = Field(ge=0)
+    attempt: int = Field(ge=1)  # 1-based
     model: str
     format: str
     seed: int

@@ -13,7 +13,16 @@ Layout:
 Crash safety: a record is one `write` of one line on an O_APPEND descriptor, made after
 its frames are on disk. A run killed mid-write leaves at most a torn last line; opening
 the store drops it (it has no newline) before appending again, so every (task, run,
-attempt) appears exactly once.
+attempt) appears exactly once. A write that fails (disk full, read-only file system, no
+permission) stops the run with `RunWriteError`: a short record is cut off again and a
+frame or prompt is written to a temporary file renamed into place, so what is on disk
+stays whole and the next resume goes on from it.
+
+A run directory is untrusted input (someone may hand you one): everything read from it is
+confined to it (`inside`: the resolved path, symlinks followed, must stay in the
+directory), records are validated (`AttemptRecord`, then `problems`: each episode holds
+attempts 1..n once each, and the key frames an unfinished episode's next attempt will be
+shown are files in the directory), and `repair` is the documented way out of a broken log.
 """
 
 from __future__ import annotations
@@ -21,23 +30,52 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import shutil
+import time
+from collections import Counter, defaultdict
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 from pydantic import ValidationError
 
 from deepphy.chat import Image
 from deepphy.config import RunConfig
-from deepphy.runs.records import AttemptRecord
+from deepphy.runs.records import AttemptRecord, episode_finished
 
 PROMPTS_REMEMBERED = 10_000  # digests known to be on disk without asking the file system
 CONFIG = "config.json"
 ATTEMPTS = "attempts.jsonl"
 ERRORS = "errors.jsonl"
 LOGS = "logs"
+FRAMES = "frames"
+PROMPTS = "prompts"
+LOCK = ".lock"
+OWN_ENTRIES = {CONFIG, ATTEMPTS, ERRORS, LOGS, FRAMES, PROMPTS, LOCK}  # what a run directory holds
 
 
 class RunDirError(RuntimeError):
     """A run directory that cannot be used as asked. The message is for the user."""
+
+
+class RunWriteError(RunDirError):
+    """Writing to the run directory failed (disk full, read-only, no permission). The run
+    stops; everything recorded so far is whole, and a resume goes on from it."""
+
+
+def inside(root: Path, rel: str | Path) -> Path | None:
+    """`root / rel` resolved (symlinks followed) if it stays inside `root` (itself resolved),
+    else None: `..`, absolute paths, NUL bytes and symlinks out of the directory."""
+    try:
+        target = (root / rel).resolve()
+    except (OSError, ValueError):  # a symlink loop; an embedded NUL byte
+        return None
+    return target if target == root or target.is_relative_to(root) else None
+
+
+def _write_failed(path: Path, what: str, e: OSError) -> RunWriteError:
+    return RunWriteError(f"cannot write {what} in {path}: {e.strerror or e}; what is recorded is whole: "
+                         "fix that and run the same command again to resume")
 
 
 class RunStore:
@@ -47,17 +85,33 @@ class RunStore:
         self._fd: int | None = None
         self._lock_fd: int | None = None
         self._prompts: set[str] = set()
+        self._task_dirs: set[str] = set()  # frames/<task> directories known to be inside the run
+        self.created = False  # this store made the directory (discard() may remove it)
+        self.appended = 0  # records and errors written
 
     # -- opening ----------------------------------------------------------------------
 
-    @classmethod
     @staticmethod
     def check(path: str | Path, config: RunConfig) -> None:
         """RunDirError unless `path` can hold this run (new, or the same config): creates nothing."""
         path = Path(path)
         if path.exists() and not path.is_dir():
             raise RunDirError(f"{path} exists and is not a directory")
-        if (path / CONFIG).exists():
+        if not path.exists():
+            return
+        root = path.resolve()
+        try:
+            entries = {p.name for p in path.iterdir()}
+        except OSError as e:
+            raise RunDirError(f"cannot read {path}: {e.strerror or e}") from None
+        foreign = sorted(entries - OWN_ENTRIES)
+        if CONFIG not in entries and foreign:
+            raise RunDirError(f"{path} is not empty and holds no run (it has {', '.join(foreign[:3])}"
+                              f"{', ...' if len(foreign) > 3 else ''}); choose another --out")
+        escaped = sorted(name for name in entries & OWN_ENTRIES if inside(root, name) is None)
+        if escaped:
+            raise RunDirError(f"{path}/{escaped[0]} leads out of the run directory (a symlink?); refusing to use it")
+        if CONFIG in entries:
             previous = read_config(path)
             if previous != config:
                 diff = _diff(previous.model_dump(mode="json"), config.model_dump(mode="json"))
@@ -67,27 +121,60 @@ class RunStore:
                 )
 
     @classmethod
-    def create_or_resume(cls, path: str | Path, config: RunConfig) -> "RunStore":
-        """Open for writing: a new directory, or the resume of a run with the same config."""
+    def claim(cls, path: str | Path, config: RunConfig) -> "RunStore":
+        """Lock `path` for this run, making it (and writing its config) if it is new. Fails
+        before anything else starts; nothing is appended until `start_writing`."""
+        cls.check(path, config)
         store = cls(Path(path))
-        cls.check(store.path, config)
-        existing = store.path / CONFIG
+        store.created = not store.path.exists()
         try:
             store.path.mkdir(parents=True, exist_ok=True)
-            (store.path / "frames").mkdir(exist_ok=True)
-            (store.path / "prompts").mkdir(exist_ok=True)
-            (store.path / LOGS).mkdir(exist_ok=True)
+            for sub in (FRAMES, PROMPTS, LOGS):
+                (store.path / sub).mkdir(exist_ok=True)
         except OSError as e:
-            raise RunDirError(f"cannot create run directory {store.path}: {e.strerror}") from None
-        store._lock()
-        if not existing.exists():
-            _atomic_write(existing, config.model_dump_json(indent=2).encode())
-        store._repair_tail()
-        store._fd = os.open(store.path / ATTEMPTS, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+            store.discard()
+            raise RunDirError(f"cannot create run directory {store.path}: {e.strerror or e}") from None
+        store._root = store.path.resolve()
+        try:
+            store._lock()
+            if not (store.path / CONFIG).exists():
+                try:
+                    _atomic_write(store.path / CONFIG, config.model_dump_json(indent=2).encode())
+                except OSError as e:
+                    raise _write_failed(store.path, CONFIG, e) from None
+        except BaseException:
+            store.discard()
+            raise
+        return store
+
+    def start_writing(self) -> None:
+        """Open the attempt log for appending (after dropping a torn last line)."""
+        try:
+            self._repair_tail()
+            self._fd = os.open(self.path / ATTEMPTS, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        except OSError as e:
+            raise _write_failed(self.path, ATTEMPTS, e) from None
+
+    @classmethod
+    def create_or_resume(cls, path: str | Path, config: RunConfig) -> "RunStore":
+        """Open for writing: a new directory, or the resume of a run with the same config."""
+        store = cls.claim(path, config)
+        try:
+            store.start_writing()
+        except BaseException:
+            store.discard()
+            raise
         return store
 
     def _lock(self) -> None:
-        self._lock_fd = os.open(self.path / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+        lock = self.path / LOCK
+        try:
+            self._lock_fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as e:
+            try:  # a read-only directory: its existing lock can still be taken, to read
+                self._lock_fd = os.open(lock, os.O_RDONLY)
+            except OSError:
+                raise RunDirError(f"cannot lock {self.path}: {e.strerror or e}") from None
         try:
             fcntl.flock(self._lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -100,16 +187,38 @@ class RunStore:
         log = self.path / ATTEMPTS
         if not log.exists():
             return
-        data = log.read_bytes()
-        if data and not data.endswith(b"\n"):
-            with open(log, "r+b") as f:
-                f.truncate(data.rfind(b"\n") + 1)
+        with open(log, "rb") as f:
+            end = f.seek(0, os.SEEK_END)
+            if end == 0:
+                return
+            f.seek(end - 1)
+            if f.read(1) == b"\n":
+                return
+            keep = 0
+            block = 64 * 1024
+            for start in range(max(0, end - block), -block, -block):
+                f.seek(max(start, 0))
+                chunk = f.read(min(block, end - max(start, 0)))
+                cut = chunk.rfind(b"\n")
+                if cut >= 0:
+                    keep = max(start, 0) + cut + 1
+                    break
+                end = max(start, 0)
+        with open(log, "r+b") as f:
+            f.truncate(keep)
 
     def close(self) -> None:
         for fd in (self._fd, self._lock_fd):
             if fd is not None:
                 os.close(fd)
         self._fd = self._lock_fd = None
+
+    def discard(self) -> None:
+        """Close; and if this store made the directory and recorded nothing, remove it, so
+        that a run that fails before its first attempt leaves nothing behind."""
+        self.close()
+        if self.created and not self.appended:
+            shutil.rmtree(self.path, ignore_errors=True)
 
     def __enter__(self) -> "RunStore":
         return self
@@ -122,37 +231,59 @@ class RunStore:
     def append(self, record: AttemptRecord) -> None:
         assert self._fd is not None, "store not open for writing"
         line = (record.model_dump_json() + "\n").encode()
-        written = os.write(self._fd, line)
-        if written != len(line):  # never seen on a local disk; fail loudly rather than tear
-            raise OSError(f"short write to {ATTEMPTS}: {written} of {len(line)} bytes")
+        try:
+            written = os.write(self._fd, line)
+        except OSError as e:
+            raise _write_failed(self.path, ATTEMPTS, e) from None
+        if written != len(line):  # the disk filled up mid-line: cut it off, the log stays whole
+            try:
+                os.ftruncate(self._fd, os.lseek(self._fd, 0, os.SEEK_END) - written)
+            except OSError:
+                pass  # the next resume drops the torn line
+            raise _write_failed(self.path, ATTEMPTS, OSError(28, os.strerror(28)))
+        self.appended += 1
 
     def append_error(self, error: dict) -> None:
         """One attempt that ended in an unexpected error (not a record: a resume retries it)."""
-        with open(self.path / ERRORS, "a") as f:
-            f.write(json.dumps(error) + "\n")
+        try:
+            with open(self.path / ERRORS, "a") as f:
+                f.write(json.dumps(error) + "\n")
+        except OSError as e:
+            raise _write_failed(self.path, ERRORS, e) from None
+        self.appended += 1
 
     def log_path(self, name: str) -> str:
-        return str((self.path / LOGS / f"{name}.log").resolve())
+        return str(self._root / LOGS / f"{name}.log")
 
     def write_frame(self, task: str, run: int, attempt: int, name: str, png: bytes) -> str:
-        rel = f"frames/{task}/r{run}_a{attempt}_{name}.png"
-        target = self.path / rel
-        target.parent.mkdir(parents=True, exist_ok=True)
-        _atomic_write(target, png)
+        rel = f"{FRAMES}/{task}/r{run}_a{attempt}_{name}.png"
+        try:
+            if task not in self._task_dirs:
+                (self.path / FRAMES / task).mkdir(exist_ok=True)
+                if inside(self._root, f"{FRAMES}/{task}") is None:
+                    raise RunDirError(f"{self.path}/{FRAMES}/{task} leads out of the run directory; refusing to write there")
+                self._task_dirs.add(task)
+            _atomic_write(self.path / rel, png)
+        except OSError as e:
+            raise _write_failed(self.path, rel, e) from None
         return rel
 
     def write_prompt(self, digest: str, text: str) -> None:
         if digest in self._prompts:
             return
-        target = self.path / "prompts" / f"{digest}.json"
-        if not target.exists():
-            _atomic_write(target, text.encode())
+        target = self.path / PROMPTS / f"{digest}.json"
+        try:
+            if not target.exists():
+                _atomic_write(target, text.encode())
+        except OSError as e:
+            raise _write_failed(self.path, f"{PROMPTS}/{digest}.json", e) from None
         if len(self._prompts) >= PROMPTS_REMEMBERED:  # bounded: a long run's memory stays flat
             self._prompts.clear()
         self._prompts.add(digest)
 
     def frame_image(self, rel: str, caption: str) -> Image:
         # By file: a waiting prompt holds the path, not the bytes (read where it is encoded).
+        # `rel` is a validated record's (see `problems`: checked inside the run on resume).
         return Image(name=rel.rsplit("/", 1)[-1], caption=caption, file=str(self._root / rel))
 
 
@@ -164,42 +295,187 @@ def read_config(path: str | Path) -> RunConfig:
     if not path.is_dir():
         why = "it is a file" if path.exists() else "it does not exist"
         raise RunDirError(f"{path} is not a run directory ({why})")
+    if (path / CONFIG).exists() and inside(path.resolve(), CONFIG) is None:
+        raise RunDirError(f"{path / CONFIG} leads out of the run directory (a symlink?); refusing to read it")
     try:
         return RunConfig.model_validate_json((path / CONFIG).read_bytes())
     except FileNotFoundError:
         raise RunDirError(f"{path} is not a run directory (no {CONFIG})") from None
-    except PermissionError:
-        raise RunDirError(f"cannot read {path / CONFIG}: permission denied") from None
+    except OSError as e:
+        raise RunDirError(f"cannot read {path / CONFIG}: {e.strerror or e}") from None
     except ValidationError as e:
-        raise RunDirError(f"{path / CONFIG} is not a valid run config: {e.errors()[0]['msg']}") from None
+        raise RunDirError(f"{path / CONFIG} is not a valid run config: {_first_error(e)}") from None
+
+
+def read_lines(path: str | Path) -> list[tuple[int, bytes]]:
+    """(line number, bytes) of every complete, non-blank line of the attempt log. A torn
+    last line is left out."""
+    path = Path(path)
+    log = path / ATTEMPTS
+    if log.exists() and inside(path.resolve(), ATTEMPTS) is None:
+        raise RunDirError(f"{log} leads out of the run directory (a symlink?); refusing to read it")
+    try:
+        data = log.read_bytes()
+    except FileNotFoundError:
+        return []
+    except OSError as e:
+        raise RunDirError(f"cannot read {log}: {e.strerror or e}") from None
+    complete = data.split(b"\n")[:-1]  # the part after the last newline is empty or torn
+    return [(n, line) for n, line in enumerate(complete, 1) if line.strip()]
+
+
+def parse_line(log: Path, n: int, line: bytes) -> AttemptRecord:
+    try:
+        return AttemptRecord.model_validate_json(line)
+    except ValidationError as e:
+        raise RunDirError(f"{log}:{n} is not a valid attempt record ({_first_error(e)}); "
+                          f"`deepphy repair {log.parent}` sets the line aside") from None
 
 
 def read_records(path: str | Path) -> list[AttemptRecord]:
     """All complete records, in the order they were written. A torn last line is ignored."""
     log = Path(path) / ATTEMPTS
+    return [parse_line(log, n, line) for n, line in read_lines(path)]
+
+
+# -- integrity ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Problem:
+    """The first broken attempt of an episode: it and every later one cannot be used."""
+
+    task: str
+    run: int
+    attempt: int
+    what: str
+    fix: str = ""  # said before the repair, when there is a better one
+
+
+def problems(path: str | Path, records: Sequence[AttemptRecord], k_max: int, frames: bool = True) -> list[Problem]:
+    """What a resume cannot go on from, one per broken episode: attempt numbers that are not
+    1..n each once (a line deleted, a record duplicated), and (`frames`) for an episode the
+    resume will continue, a key frame of its history that is missing or leads out of the
+    directory."""
+    root = Path(path).resolve()
+    episodes: dict[tuple[str, int], list[AttemptRecord]] = defaultdict(list)
+    for r in records:
+        episodes[(r.task, r.run)].append(r)
+    found = []
+    for (task, run), recs in episodes.items():
+        counts = Counter(r.attempt for r in recs)
+        first_bad = 1
+        while counts.get(first_bad) == 1:
+            first_bad += 1
+        problem = None
+        if counts.get(first_bad, 0) > 1:
+            problem = Problem(task, run, first_bad, f"attempt {first_bad} of task {task} run {run} is recorded "
+                                                    f"{counts[first_bad]} times")
+        elif max(counts) >= first_bad:
+            shown = ", ".join(map(str, sorted(counts)[:12]))
+            problem = Problem(task, run, first_bad, f"task {task} run {run} has attempts {shown}: "
+                                                    f"attempt {first_bad} is missing")
+        kept = sorted((r for r in recs if r.attempt < first_bad), key=lambda r: r.attempt)
+        if frames and not episode_finished(kept, k_max):  # the next attempt is shown these frames
+            for r in kept:
+                bad = next((f.path for f in r.key_frames if not _frame_ok(root, f.path)), None)
+                if bad is not None:
+                    where = "is missing" if inside(root, bad) is not None else "leads out of the run directory"
+                    problem = Problem(task, run, r.attempt, f"the key frame {bad} of task {task} run {run} attempt "
+                                                            f"{r.attempt} {where}",
+                                      fix="restore it, or" if where == "is missing" else "")
+                    break
+        if problem is not None:
+            found.append(problem)
+    return found
+
+
+def _frame_ok(root: Path, rel: str) -> bool:
+    target = inside(root, rel)
+    return target is not None and target.is_file()
+
+
+def check_records(path: str | Path, records: Sequence[AttemptRecord], k_max: int, frames: bool = True) -> None:
+    """RunDirError naming the first broken episode (see `problems`) and the way out."""
+    found = problems(path, records, k_max, frames)
+    if not found:
+        return
+    p = found[0]
+    more = f" (and {len(found) - 1} more episode(s))" if len(found) > 1 else ""
+    raise RunDirError(f"{path}: {p.what}{more}; {p.fix + ' ' if p.fix else ''}run `deepphy repair {path}` to keep "
+                      f"each broken episode's attempts before the first broken one (the next resume runs the rest)")
+
+
+@dataclass
+class Repair:
+    dropped_lines: int
+    episodes: list[Problem]
+    unreadable: int  # lines that were not valid records
+    backup: Path | None
+
+
+def repair(path: str | Path, k_max: int) -> Repair:
+    """Set aside what a resume cannot go on from: lines that are not valid records, and each
+    broken episode's attempts from its first broken one on (see `problems`). The old log is
+    kept beside the new one (attempts.jsonl.<time>.bak); the next resume runs the dropped
+    attempts again. Takes the run's lock."""
+    path = Path(path)
+    read_config(path)  # a run directory, or a clear error
+    store = RunStore(path)
+    store._lock()
     try:
-        data = log.read_bytes()
-    except FileNotFoundError:
-        return []
-    except PermissionError:
-        raise RunDirError(f"cannot read {log}: permission denied") from None
-    records = []
-    lines = data.split(b"\n")
-    complete = lines[:-1]  # the part after the last newline is empty or torn
-    for n, line in enumerate(complete, 1):
-        if not line.strip():
-            continue
+        lines = read_lines(path)
+        records, unreadable = [], 0
+        for n, line in lines:
+            try:
+                records.append((n, line, AttemptRecord.model_validate_json(line)))
+            except ValidationError:
+                unreadable += 1
+        found = problems(path, [r for _, _, r in records], k_max)
+        first_bad = {(p.task, p.run): p.attempt for p in found}
+        kept = [line for _, line, r in records if r.attempt < first_bad.get((r.task, r.run), r.attempt + 1)]
+        dropped = len(lines) - len(kept)
+        if not dropped:
+            return Repair(0, [], 0, None)
+        log = path / ATTEMPTS
+        backup = path / f"{ATTEMPTS}.{time.strftime('%Y%m%d-%H%M%S')}.bak"
+        tmp = path / f".{ATTEMPTS}.{os.getpid()}.tmp"
         try:
-            records.append(AttemptRecord.model_validate_json(line))
-        except ValidationError:
-            raise RunDirError(f"{log}:{n} is not a valid attempt record") from None
-    return records
+            tmp.write_bytes(b"".join(line + b"\n" for line in kept))
+            os.link(log, backup)  # the old log stays, under its backup name
+            os.replace(tmp, log)
+        except OSError as e:
+            tmp.unlink(missing_ok=True)
+            raise _write_failed(path, ATTEMPTS, e) from None
+        return Repair(dropped, found, unreadable, backup)
+    finally:
+        store.close()
+
+
+def is_stored_prompt(messages: object) -> bool:
+    """The shape of prompts/<digest>.json (deepphy.prompts.prompt_as_json): a list of
+    {"role": str, "content": [str, ...]}. Readers check it: the file may have been edited."""
+    return isinstance(messages, list) and all(
+        isinstance(m, dict) and isinstance(m.get("role"), str) and isinstance(m.get("content"), list)
+        and all(isinstance(t, str) for t in m["content"]) for m in messages)
 
 
 def _atomic_write(target: Path, data: bytes) -> None:
+    """Write to a temporary file renamed into place; the temporary file never stays behind."""
     tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, target)
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+        os.replace(tmp, target)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _first_error(e: ValidationError) -> str:
+    err = e.errors()[0]
+    where = ".".join(map(str, err["loc"]))
+    return f"{where + ': ' if where else ''}{err['msg']}"[:200]
 
 
 def _diff(old: dict, new: dict) -> str:

@@ -29,7 +29,8 @@ Faults (at `--fault-rate`, kinds from `--faults`): `429` (with Retry-After; Gemi
 RetryInfo detail in the body), `500`,
 `hang` (no answer for --hang seconds, past any sane client timeout), `malformed` (200
 with truncated JSON), `empty` (200 with no choices / content / candidates), `prose` (200
-with a reply that contains no action). Whether a request is faulted, and how, depends
+with a reply that contains no action); and, only when named, `drip` (a 200 whose body
+arrives one byte every --drip seconds). Whether a request is faulted, and how, depends
 only on the seed, the request (body + context header) and how many times that same
 request arrived before, so a run's faults do not depend on timing or arrival order; a
 retry of a request draws again.
@@ -60,7 +61,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from deepphy.models.wire import ANTHROPIC_NO_SAMPLING_FROM, CONTEXT_HEADER, decode_context, image_tokens, text_tokens
 from deepphy.seeding import seeded_rng
 
-FAULT_KINDS = ("429", "500", "hang", "malformed", "empty", "prose")
+FAULT_KINDS = ("429", "500", "hang", "malformed", "empty", "prose")  # the default kinds
+SLOW_FAULTS = ("drip",)  # only when named: a drip ties a request up for as long as the client lets it
 PROSE_REPLY = (
     "Looking at the scene, the balls rest on the gray supports and gravity will pull them down "
     "once the supports are gone. I would want to think carefully about the timing of each "
@@ -75,14 +77,15 @@ class Faults(BaseModel):
     kinds: list[str] = Field(default_factory=lambda: list(FAULT_KINDS))
     retry_after_s: float = Field(1.0, ge=0)
     hang_s: float = Field(3600.0, ge=0)
+    drip_s: float = Field(1.0, gt=0, description="seconds between the bytes of a dripped body")
     first_tries: int = Field(0, ge=0, description="fault the first N arrivals of every distinct request (tests), on top of `rate`")
 
     @field_validator("kinds")
     @classmethod
     def _known(cls, v: list[str]) -> list[str]:
-        bad = [k for k in v if k not in FAULT_KINDS]
+        bad = [k for k in v if k not in FAULT_KINDS + SLOW_FAULTS]
         if bad or not v:
-            raise ValueError(f"fault kinds must be a non-empty subset of {FAULT_KINDS}, got {v}")
+            raise ValueError(f"fault kinds must be a non-empty subset of {FAULT_KINDS + SLOW_FAULTS}, got {v}")
         return v
 
 
@@ -534,6 +537,17 @@ class MockServer:
         self._reset()
         return web.json_response({"ok": True})
 
+    async def _drip(self, request: web.Request, payload: dict, headers: dict[str, str]) -> web.StreamResponse:
+        data = json.dumps(payload).encode()
+        resp = web.StreamResponse(headers={**headers, "Content-Type": "application/json",
+                                           "Content-Length": str(len(data))})
+        await resp.prepare(request)
+        for i in range(len(data)):
+            await resp.write(data[i:i + 1])
+            await asyncio.sleep(self.config.faults.drip_s)
+        await resp.write_eof()
+        return resp
+
     def _handler(self, fmt):
         async def handle(request: web.Request) -> web.StreamResponse:
             arrived = time.time()
@@ -623,6 +637,8 @@ class MockServer:
             from deepphy.agents import mock_text
 
             text = mock_text(ctx)
+        if fault == "drip":
+            return await self._drip(request, fmt.reply(body, text, tin, text_tokens(text)), id_header), fault
         return web.json_response(fmt.reply(body, text, tin, text_tokens(text)), headers=id_header), fault
 
 
@@ -690,13 +706,15 @@ class ServerThread:
 
 def spawn(*args: str, timeout_s: float = 60.0):
     """Start `python -m deepphy.testing.model_server --port 0 ARGS` in a subprocess.
-    Returns (Popen, base URL); the caller terminates it."""
+    Returns (Popen, base URL); the caller terminates it. On Linux the server also ends when
+    the thread that spawned it does (the caller killed, say), so none is left behind."""
     import subprocess
 
     proc = subprocess.Popen(
         [sys.executable, "-m", "deepphy.testing.model_server", "--port", "0", *args],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
         env={**os.environ, "PYGAME_HIDE_SUPPORT_PROMPT": "1"},
+        preexec_fn=_end_with_parent if sys.platform.startswith("linux") else None,
     )
     deadline = time.time() + timeout_s
     while time.time() < deadline:
@@ -709,6 +727,14 @@ def spawn(*args: str, timeout_s: float = 60.0):
     raise RuntimeError("the model server did not start")
 
 
+def _end_with_parent() -> None:
+    """In the child, before exec: SIGTERM when the parent (thread) ends (prctl PR_SET_PDEATHSIG)."""
+    import ctypes
+    import signal
+
+    ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="python -m deepphy.testing.model_server", description=__doc__.split("\n\n")[0])
     ap.add_argument("--host", default="127.0.0.1")
@@ -717,9 +743,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--latency-jitter", type=float, default=0.0, help="extra uniform 0..J seconds")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--fault-rate", type=float, default=0.0)
-    ap.add_argument("--faults", default=",".join(FAULT_KINDS), help=f"comma list of {','.join(FAULT_KINDS)}")
+    ap.add_argument("--faults", default=",".join(FAULT_KINDS),
+                    help=f"comma list of {','.join(FAULT_KINDS + SLOW_FAULTS)}")
     ap.add_argument("--retry-after", type=float, default=1.0, help="Retry-After seconds sent with 429")
     ap.add_argument("--hang", type=float, default=3600.0, help="seconds a 'hang' fault holds the request")
+    ap.add_argument("--drip", type=float, default=1.0, help="seconds between the bytes of a 'drip' fault's body")
     ap.add_argument("--first-tries", type=int, default=0, help="fault the first N arrivals of every distinct request")
     ap.add_argument("--require-key-env", default=None, help="require the key held in this env var")
     ap.add_argument("--record-bodies", type=int, default=0, help="keep the last N request bodies (GET /admin/bodies)")
@@ -729,7 +757,7 @@ def main(argv: list[str] | None = None) -> None:
         latency_s=a.latency,
         latency_jitter_s=a.latency_jitter,
         seed=a.seed,
-        faults=Faults(rate=a.fault_rate, kinds=[k for k in a.faults.split(",") if k], retry_after_s=a.retry_after, hang_s=a.hang,
+        faults=Faults(rate=a.fault_rate, kinds=[k for k in a.faults.split(",") if k], retry_after_s=a.retry_after, hang_s=a.hang, drip_s=a.drip,
                       first_tries=a.first_tries),
         require_key_env=a.require_key_env,
         record_bodies=a.record_bodies,

@@ -13,6 +13,7 @@ const S = {
   colors: new Map(),   // id -> colour, stable in order of arrival
   hidden: new Set(),   // ids left out of the charts
   selected: null,      // run whose table and grid are shown
+  chosen: false,       // the selection is the user's (else: the first run, in the server's order)
   grid: null,          // the grid page shown: {run, page, group, tasks, cells, ...}
   page: 0,
   group: "",
@@ -70,7 +71,7 @@ function connect() {
     const state = JSON.parse(e.data);
     S.runs.clear();
     for (const v of state.runs) { colorOf(v.id); S.runs.set(v.id, v); }
-    if (!S.selected || !S.runs.has(S.selected)) S.selected = firstDetailed();
+    if (!S.chosen || !S.runs.has(S.selected)) S.selected = firstDetailed();
     renderAll();
     loadGrid();
   });
@@ -82,7 +83,12 @@ function connect() {
     colorOf(v.id);
     S.runs.set(v.id, v);
     document.getElementById("updated").textContent = "updated " + new Date().toLocaleTimeString();
-    if (isNew) { if (!S.selected) S.selected = firstDetailed(); renderAll(); loadGrid(); return; }
+    if (isNew) {
+      // runs load side by side: keep the server's order, and show the first until one is chosen
+      S.runs = new Map([...S.runs.entries()].sort((a, b) => a[1].order - b[1].order));
+      if (!S.chosen) { const first = firstDetailed(); if (first !== S.selected) { S.selected = first; S.grid = null; } }
+      renderAll(); loadGrid(); return;
+    }
     renderCard(v);
     renderCharts();
     if (v.id === S.selected) {
@@ -285,6 +291,7 @@ function starChart(series, title, env) {
 // -- task grid -------------------------------------------------------------------------
 
 function selectRun(id) {
+  S.chosen = true;
   if (S.selected === id) return;
   S.selected = id; S.page = 0; S.group = ""; S.grid = null;
   for (const c of document.querySelectorAll(".card")) c.classList.toggle("selected", c.dataset.run === id);
@@ -346,7 +353,7 @@ function cellNode(runId, task, r, cell, g) {
   const words = { solved: `solved at ${unit} ${at}`, failed: `failed (${attempts} attempt(s))`,
     progress: `in progress (${attempts} attempt(s) so far)`, pending: "not started" }[state];
   const node = el("button", {
-    type: "button", class: `cell ${state}`, "data-task": task, "data-r": r, "data-state": state,
+    type: "button", class: `cell ${state}`, "data-run": runId, "data-task": task, "data-r": r, "data-state": state,
     "data-attempts": attempts, title: `${task} · run ${r}: ${words}${invalid ? `, ${invalid} invalid` : ""}${stars !== null ? `, ${stars}★` : ""}`,
     text: state === "solved" ? (stars !== null && K === 1 ? stars + "★" : at) : "",
     onclick: state === "pending" ? null : () => openEpisode(runId, task, r),
@@ -478,6 +485,7 @@ document.getElementById("group-select").addEventListener("change", (e) => { S.gr
 const hash = new URLSearchParams(location.hash.slice(1));
 if (hash.get("run")) {
   S.selected = hash.get("run");
+  S.chosen = true;
   if (hash.get("task")) openEpisode(hash.get("run"), hash.get("task"), Number(hash.get("r") || 0));
 }
 connect();
