@@ -26,7 +26,7 @@ from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import Action, EnvSpec, Observation, StepResult, Task
 from deepphy.envs.base import ObservationCache
 from deepphy.models import ModelError, ModelRequest, ModelResponse
-from deepphy.protocol import ModelHandle, run_attempt
+from deepphy.protocol import EnvHandle, ModelHandle, run_attempt
 from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished
 from deepphy.runs.store import RunStore
 
@@ -120,9 +120,10 @@ class Scheduler:
         store: RunStore,
         env_workers: list[Any],
         model: ModelHandle,
-        metrics: Any,
+        metrics: Any,  # the metrics actor; None: no live figures (`deepphy play`)
         k_max: int,
         max_model_requeues: int = 5,
+        local_env: EnvHandle | None = None,
     ) -> None:
         self.config = config
         self.runtime = runtime
@@ -136,6 +137,7 @@ class Scheduler:
         self.metrics = metrics
         self.k_max = k_max
         self.max_model_requeues = max_model_requeues
+        self.local_env = local_env  # `deepphy play`: one environment in this process instead of the workers
         self.failed: list[str] = []  # episodes left unfinished (model or worker failures, budget), for the caller
         self.errored: list[str] = []  # episodes whose attempt raised an unexpected error
         self.stop_requested = False
@@ -202,13 +204,15 @@ class Scheduler:
         """Hand the new attempts' summaries to the metrics actor, in one call."""
         if self.unsent:
             batch, self.unsent = self.unsent, []
-            self.metrics.add.remote(batch)
+            if self.metrics is not None:
+                self.metrics.add.remote(batch)
 
     async def _send_summaries_every(self, seconds: float) -> None:
         while True:
             await asyncio.sleep(seconds)
             self.send_summaries()
-            self.metrics.update.remote({**self.activity(), "phase": "running"})
+            if self.metrics is not None:
+                self.metrics.update.remote({**self.activity(), "phase": "running"})
 
     async def _attempt_with_retries(
         self, task: Task, run: int, attempt: int, previous: list[AttemptRecord]
@@ -239,6 +243,9 @@ class Scheduler:
             return record
 
     async def _attempt(self, task: Task, run: int, attempt: int, previous: list[AttemptRecord]) -> AttemptRecord:
+        if self.local_env is not None:
+            return await run_attempt(self.spec, self.prompt, self.config, task, run, attempt, previous,
+                                     self.local_env, self, self.store)
         index = min(range(len(self.env_workers)), key=lambda i: self.load[i])
         env = WorkerEnv(self.env_workers[index], f"{task.id}|{run}|{attempt}|{time.monotonic_ns()}",
                         self.runtime.step_timeout_s, self.initial)
