@@ -90,6 +90,46 @@ def model_run(config: RunConfig, out: Path, reply: Callable[[str, int, int, int]
     return read_records(out)
 
 
+def person_run(config: RunConfig, out: Path, reply: Callable[[str, int, int, int], str]) -> list[AttemptRecord]:
+    """A person's play of `config` into `out` without a page: each waiting decision answered
+    on the desk with `reply`'s text, as the page would."""
+
+    async def play() -> None:
+        session = PlaySession(config, out)
+        try:
+            await answer(session, reply)
+        finally:
+            session.close()
+
+    with ThreadPoolExecutor(1) as pool:
+        pool.submit(asyncio.run, play()).result()
+    return read_records(out)
+
+
+async def answer(session: PlaySession, reply: Callable[[str, int, int, int], str],
+                 stop_after: int | None = None) -> list[str]:
+    """Play as a page would: answer each waiting decision with `reply`; stop after
+    `stop_after` answers (the play left in the middle). Returns the decision keys answered."""
+    play = asyncio.ensure_future(session.play())
+    answered: list[str] = []
+    while not play.done():
+        pending = session.desk.pending
+        if pending is None or pending.answer.done():
+            await asyncio.sleep(0.005)
+            continue
+        if stop_after is not None and len(answered) == stop_after:
+            play.cancel()
+            break
+        c = pending.request.context
+        session.desk.answer(pending.key, reply(c.task_id, c.run, c.attempt, c.step))
+        answered.append(pending.key)
+    try:
+        await play
+    except asyncio.CancelledError:
+        pass
+    return answered
+
+
 def same_records(person: list[AttemptRecord], model: list[AttemptRecord]) -> None:
     """The records are equal but for the model's name and the clock."""
     assert [r.key for r in person] == [r.key for r in model]

@@ -17,6 +17,7 @@ import re
 import subprocess
 import sys
 import threading
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -26,7 +27,7 @@ from deepphy.config import RunConfig
 from deepphy.envs import ActionSpace, get_spec
 from deepphy.play.human import JOURNAL
 from deepphy.runs.store import read_records
-from play_support import PlayThread, model_run, same_records
+from play_support import PlayThread, model_run, person_run, same_records
 from test_dashboard_browser import CHROMIUM, CHROMIUM_ARGS
 
 pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"needs Debian's chromium at {CHROMIUM}")
@@ -379,6 +380,7 @@ def test_closing_the_page_or_stopping_the_server_mid_level_loses_nothing(open_pa
     server = PlayProcess("--env", "cuttherope", "--tasks", level, "--player", "ana", "--out", str(out))
     try:
         page = open_page(server.url)
+        wait_for_decision(page)
         written = [set_action(page, drive_cuttherope, plan[0])]
         act(page)
         waiting = decision(page)
@@ -413,3 +415,41 @@ def test_closing_the_page_or_stopping_the_server_mid_level_loses_nothing(open_pa
     assert record.timing.decision_s == [a["seconds"] for a in journal]  # the person's times, across the stop
     config = RunConfig(env="cuttherope", model="human:ana", runs=1, tasks=[level])
     check_equal_to_model_replies(config, out, tmp_path, written)
+
+
+def test_dashboard_shows_a_persons_run_beside_a_models_and_replays_both(ray_cluster, tmp_path_factory, open_page,
+                                                                         screenshots, tmp_path):
+    """A person's run is one more run on the dashboard; any attempt there, a model's or a
+    person's, can be watched again as an animation of the world."""
+    from dashboard_support import IPHYRE_TASKS, mock_run
+    from test_dashboard_browser import DashboardProcess, card_values, run_id_of
+
+    with ThreadPoolExecutor(1) as pool:  # evaluate() runs its own event loop: not in Playwright's thread
+        model = pool.submit(mock_run, tmp_path_factory).result()
+    config = RunConfig(env="iphyre", model="human:tester", runs=1, tasks=IPHYRE_TASKS[:2], max_attempts=2)
+    person = tmp_path / "person"
+    records = person_run(config, person, lambda *key: '[{"time": 1.0, "index": 0}]')
+    server = DashboardProcess(str(model), str(person))
+    try:
+        page = open_page(server.url)
+        page.wait_for_function("document.querySelectorAll('.card').length === 2")
+        assert "human:tester" in page.text_content(f'.card[data-run="{run_id_of(page, person)}"]')
+        assert card_values(page, run_id_of(page, person))["attempts"] == str(len(records))
+        for run_dir, name in ((model, "model"), (person, "person")):
+            page.select_option("#run-select", run_id_of(page, run_dir))
+            task = read_records(run_dir)[0].task
+            page.click(f'#grid .cell[data-task="{task}"][data-r="0"]')
+            page.wait_for_selector(f'#episode details.attempt[data-attempt="1"] a.replay')
+            with page.context.expect_page() as opened:
+                page.click('#episode details.attempt[data-attempt="1"] a.replay')
+            replay = opened.value
+            replay.wait_for_selector("#player:not([hidden])", timeout=120_000)
+            assert int(replay.get_attribute("#player", "data-pictures")) > 100  # 15 s of I-PHYRE at 12 per s
+            assert "equals the record" in replay.text_content("#note")
+            replay.wait_for_function("() => Number(document.querySelector('#player').dataset.frame) >= 5")
+            replay.screenshot(path=str(screenshots / f"dashboard_replay_{name}.png"))
+            replay.close()
+            page.keyboard.press("Escape")
+        page.close()
+    finally:
+        server.close()

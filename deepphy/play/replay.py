@@ -182,7 +182,7 @@ def add_routes(app: web.Application, run_dir_of: Callable[[str], Path | None]) -
         web.get("/replay", page),
         web.get("/api/runs/{run}/replay", film),
         web.get("/api/runs/{run}/replay/{film}/{index}.jpg", picture),
-        web.get("/static/play/{name}", static_file),
+        web.get("/play-static/{name}", static_file),
     ])
 
 

@@ -14,7 +14,7 @@ async function load() {
   film = await response.json();
   $("#what").textContent = `${film.env} · ${film.task} · run ${film.run} · attempt ${film.attempt} · ${film.model}`;
   $("#outcome").replaceChildren(el("span", { class: film.success ? "ok" : "bad", text: film.success ? "Solved" : "Not solved" }),
-    film.stars !== null ? ` with ${film.stars} star(s)` : "", `: ${film.outcome}`);
+    film.stars !== null ? ` with ${film.stars} star(s)` : "", `: ${film.outcome.replace(/^(solved|failed)\.\s*/, "")}`);
   $("#note").textContent = film.note || (film.matches ? `Simulated again from the recorded actions; every decision's result equals the record.` : "");
   $("#note").className = film.matches ? "hint" : "bad";
   $("#decisions").replaceChildren(...film.decisions.map((d) => el("li", {},
