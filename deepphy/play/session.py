@@ -43,12 +43,14 @@ class PlayEnv:
         self.env, self.session = env, session
 
     async def reset(self, task: Task) -> Observation:
-        return await asyncio.to_thread(self.env.reset, task)
+        observation = await asyncio.to_thread(self.env.reset, task)
+        self.session.warm_up()  # while the person thinks about the first decision
+        return observation
 
     async def step(self, action: Action) -> StepResult:
         self.session.set_busy(True)
         try:
-            await self.session.warming  # compiled while the person thought about the first decision
+            await self.session.warm_up()
             result = await asyncio.to_thread(self.env.step, action)
         finally:
             self.session.set_busy(False)
@@ -86,6 +88,15 @@ class PlaySession:
         self.store.on_record = self.recorded
 
     # -- what the protocol tells ---------------------------------------------------------
+
+    def warm_up(self) -> asyncio.Future:
+        """The environment's one-time preparation (compiling kernels), started once: after
+        the first observation, so that it runs while the person decides; steps wait for it."""
+        if self.warming is None:
+            env_cls = self.spec.load()
+            options = env_cls.Options(**self.config.env_options)
+            self.warming = asyncio.ensure_future(asyncio.to_thread(env_cls.warm_up, options, self.tasks))
+        return self.warming
 
     def set_busy(self, busy: bool) -> None:
         self.busy = busy
@@ -151,11 +162,7 @@ class PlaySession:
 
         try:
             env_cls = self.spec.load()
-            options = env_cls.Options(**self.config.env_options)
-            # The environment's one-time preparation (compiling kernels) runs while the first
-            # prompt is on the page; the first step waits for it.
-            self.warming = asyncio.ensure_future(asyncio.to_thread(env_cls.warm_up, options, self.tasks))
-            env = await asyncio.to_thread(env_cls, options)
+            env = await asyncio.to_thread(env_cls, env_cls.Options(**self.config.env_options))
             runtime = RuntimeOptions(max_in_flight=1, progress=False, model_timeout_s=DECISION_TIMEOUT_S)
             scheduler = Scheduler(self.config, runtime, self.spec, self.tasks, self.store, [],
                                   HumanModel(self.desk, self.journal), None, self.k_max,

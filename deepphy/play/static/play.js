@@ -42,7 +42,8 @@ function renderStatus(s) {
   status.textContent = s.error ? `Error: ${s.error}`
     : s.finished ? `All ${s.progress.episodes_total} task(s) are done: thank you! The run is in ${s.run_dir}.`
     : s.busy ? "The world is running…"
-    : s.decision ? "" : "Preparing the next decision…";
+    : s.decision ? "" : s.progress.attempts || s.last ? "Preparing the next decision…"
+    : `Loading ${s.title} (a simulator can take some seconds to start)…`;
   status.dataset.state = s.finished ? "finished" : s.busy ? "busy" : s.decision ? "deciding" : "waiting";
 }
 
