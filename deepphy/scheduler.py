@@ -26,7 +26,7 @@ from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import Action, EnvSpec, Observation, StepResult, Task
 from deepphy.envs.base import ObservationCache
 from deepphy.models import ModelError, ModelRequest, ModelResponse
-from deepphy.protocol import EnvHandle, ModelHandle, run_attempt
+from deepphy.protocol import ModelHandle, run_attempt
 from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished
 from deepphy.runs.store import RunStore
 
@@ -123,7 +123,7 @@ class Scheduler:
         metrics: Any,  # the metrics actor; None: no live figures (`deepphy play`)
         k_max: int,
         max_model_requeues: int = 5,
-        local_env: EnvHandle | None = None,
+        local_env: Any = None,  # a protocol.EnvHandle
     ) -> None:
         self.config = config
         self.runtime = runtime

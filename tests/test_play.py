@@ -8,6 +8,7 @@ import asyncio
 import json
 import subprocess
 import sys
+import time
 
 import pytest
 import toy_env
@@ -151,6 +152,8 @@ def test_the_server_takes_answers_from_its_page_only(tmp_path):
             assert checked == {"ok": False, "error": "F must be one of (-2, -1, 0, 1, 2), got 9"}
             checked = await (await client.post("/api/check", json={"key": key, "text": "I push(1)"}, headers=ok)).json()
             assert checked == {"ok": True, "action": "push(1)"}
+            rebound = await client.get("/api/state", headers={"Host": f"evil.example:{client.port}"})
+            assert rebound.status == 403  # a page whose name resolves here reads nothing
             refused = [
                 await client.post("/api/answer", json={"key": key, "text": "push(1)"}, headers={"Origin": "http://evil.example"}),
                 # a page of another site whose name resolves to this machine (DNS rebinding)
@@ -181,6 +184,20 @@ def test_the_server_takes_answers_from_its_page_only(tmp_path):
         session.close()
     [step] = [json.loads(line) for line in (tmp_path / "person" / JOURNAL).read_text().splitlines()]
     assert step["text"] == "I push(1)"  # the reply is what the person sent; the action is parsed from it
+
+
+@pytest.mark.parametrize("listening, origin, host, ours", [
+    ("127.0.0.1", "http://127.0.0.1:8710", "127.0.0.1:8710", True),
+    ("127.0.0.1", "http://localhost:8710", "localhost:8710", True),
+    ("127.0.0.1", "http://evil.example:8710", "evil.example:8710", False),  # a name that resolves here
+    ("127.0.0.1", "http://evil.example", "127.0.0.1:8710", False),
+    ("0.0.0.0", "http://10.1.2.3:8710", "10.1.2.3:8710", True),  # --host: reached from another machine
+    ("0.0.0.0", "http://evil.example", "10.1.2.3:8710", False),
+])
+def test_which_pages_may_answer(listening, origin, host, ours):
+    from types import SimpleNamespace
+
+    assert PlayServer._ours(SimpleNamespace(host=listening), origin, host) is ours
 
 
 @pytest.mark.parametrize("args, message", [
@@ -282,3 +299,24 @@ def test_a_persons_run_is_reported_and_plotted_beside_a_models(tmp_path):
     written = plot_all(reports, tmp_path / "figures")
     assert written and all(path.stat().st_size > 0 for path in written)
     assert "human:ana" in (tmp_path / "figures" / "figures.json").read_text()
+
+
+def test_ctrl_c_stops_play_at_once_and_the_same_command_resumes(deepphy_cmd, tmp_path):
+    import re
+    import signal
+    import urllib.request
+
+    args = [*deepphy_cmd, "play", "--env", "phyre", "--tasks", "within_00000-000", "--player", "ana",
+            "--out", str(tmp_path / "p"), "--port", "0"]
+    for _ in range(2):
+        proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        url = re.search(r"http://127\.0\.0\.1:\d+/", proc.stdout.readline()).group(0)
+        for _ in range(600):  # the first decision waits for the person
+            if json.load(urllib.request.urlopen(url + "api/state", timeout=10))["decision"]:
+                break
+            time.sleep(0.1)
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=60)
+        assert proc.returncode == 130 and "interrupted; run the same command again to resume" in out
+    assert read_records(tmp_path / "p") == []

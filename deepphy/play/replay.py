@@ -25,6 +25,7 @@ from aiohttp import web
 
 from deepphy.envs import InvalidAction
 from deepphy.envs.base import FILM_FPS, Environment
+from deepphy.play.background import off_loop
 from deepphy.runs.records import AttemptRecord, StepRecord
 from deepphy.runs.store import read_config, read_records
 
@@ -125,7 +126,7 @@ class Films:
         if film_id in self._films:
             return self._films[film_id]
         if film_id not in self._making:
-            self._making[film_id] = asyncio.ensure_future(asyncio.to_thread(film_attempt, run_dir, task, run, attempt))
+            self._making[film_id] = asyncio.ensure_future(off_loop(film_attempt, run_dir, task, run, attempt))
         making = self._making[film_id]
         try:
             film = await asyncio.shield(making)

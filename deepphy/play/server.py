@@ -1,10 +1,10 @@
 """The play page's web server (aiohttp): the page, the session's state as JSON and
 Server-Sent Events, the images of the waiting prompt, the person's answers, replays.
 
-Bound to 127.0.0.1 by default. Requests that change something (an answer) must come from
-the page itself: a JSON body, and an Origin (when the browser sends one) that is this
-server on a name it was reached by on this machine, so another web site open in the same
-browser cannot answer for the person.
+Bound to 127.0.0.1 by default, and then answering only requests whose Host names this
+machine. Requests that change something (an answer) must come from the page itself: a JSON
+body, and an Origin (when the browser sends one) that is this server as the request reached
+it, so another web site open in the same browser cannot answer for the person.
 """
 
 from __future__ import annotations
@@ -114,11 +114,12 @@ class PlayServer:
         return key, text
 
     def _ours(self, origin: str, host: str) -> bool:
-        """An Origin naming this server, reached by the host it listens on or by a name of
-        this machine (a page of another site, even one whose name resolves here, is not)."""
+        """An Origin naming this server as the request reached it; on loopback, by a name of
+        this machine (a page of another site whose name resolves here is not ours)."""
         parts = urlsplit(origin)
-        name = (parts.hostname or "").strip("[]")
-        return parts.netloc == host and (name == self.host.strip("[]") or name in LOOPBACK_NAMES)
+        if parts.netloc != host:
+            return False
+        return self.host not in LOOPBACK_NAMES or (parts.hostname or "") in LOOPBACK_NAMES
 
     async def check(self, request: web.Request) -> web.Response:
         """Whether text is an action of the waiting decision: its canonical text, or the reason."""
@@ -149,8 +150,21 @@ def sse(event: str, payload: Any) -> bytes:
     return f"event: {event}\ndata: {json.dumps(payload, separators=(',', ':'))}\n\n".encode()
 
 
+def loopback_only(server: PlayServer):
+    """Listening on loopback, requests must name this machine (Host): a web page elsewhere
+    whose name resolves here (DNS rebinding) reads and answers nothing."""
+
+    @web.middleware
+    async def check(request: web.Request, handler):
+        if server.host in LOOPBACK_NAMES and urlsplit(f"//{request.host}").hostname not in LOOPBACK_NAMES:
+            raise web.HTTPForbidden(text="this page answers only to a loopback Host (127.0.0.1, localhost)")
+        return await handler(request)
+
+    return check
+
+
 def make_app(server: PlayServer) -> web.Application:
-    app = web.Application(client_max_size=64 * 1024)
+    app = web.Application(client_max_size=64 * 1024, middlewares=[loopback_only(server)])
     app.add_routes([
         web.get("/", server.index),
         web.get("/api/state", server.api_state),

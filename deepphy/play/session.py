@@ -16,6 +16,7 @@ from typing import Any, Callable
 
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import Action, Environment, Observation, StepResult, Task
+from deepphy.play.background import off_loop
 from deepphy.play.human import Desk, HumanModel, Journal
 from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished
 from deepphy.runs.store import RunStore, read_records
@@ -43,7 +44,7 @@ class PlayEnv:
         self.env, self.session = env, session
 
     async def reset(self, task: Task) -> Observation:
-        observation = await asyncio.to_thread(self.env.reset, task)
+        observation = await off_loop(self.env.reset, task)
         self.session.warm_up()  # while the person thinks about the first decision
         return observation
 
@@ -51,7 +52,7 @@ class PlayEnv:
         self.session.set_busy(True)
         try:
             await self.session.warm_up()
-            result = await asyncio.to_thread(self.env.step, action)
+            result = await off_loop(self.env.step, action)
         finally:
             self.session.set_busy(False)
         self.session.stepped(result)
@@ -67,7 +68,6 @@ class PlaySession:
 
         self.config = config
         self.spec, self.tasks, self.k_max = resolve(config)
-        RunStore.check(out, config)
         self.store = PlayStore.create_or_resume(out, config)
         self.path = self.store.path.resolve()
         try:
@@ -95,7 +95,7 @@ class PlaySession:
         if self.warming is None:
             env_cls = self.spec.load()
             options = env_cls.Options(**self.config.env_options)
-            self.warming = asyncio.ensure_future(asyncio.to_thread(env_cls.warm_up, options, self.tasks))
+            self.warming = asyncio.ensure_future(off_loop(env_cls.warm_up, options, self.tasks))
         return self.warming
 
     def set_busy(self, busy: bool) -> None:
@@ -162,7 +162,7 @@ class PlaySession:
 
         try:
             env_cls = self.spec.load()
-            env = await asyncio.to_thread(env_cls, env_cls.Options(**self.config.env_options))
+            env = await off_loop(env_cls, env_cls.Options(**self.config.env_options))
             runtime = RuntimeOptions(max_in_flight=1, progress=False, model_timeout_s=DECISION_TIMEOUT_S)
             scheduler = Scheduler(self.config, runtime, self.spec, self.tasks, self.store, [],
                                   HumanModel(self.desk, self.journal), None, self.k_max,

@@ -1,6 +1,7 @@
 "use strict";
 // A recorded attempt, simulated again and shown as an animation of the world: the pictures
 // come from the server (`/api/runs/<run>/replay`), FILM_FPS per simulated second.
+// (el() comes from controls.js.)
 
 const q = new URLSearchParams(location.search);
 let film = null, frame = 0, playing = true, timer = null;
