@@ -219,15 +219,34 @@ def set_action(page, drive, text: str) -> str:
 def act(page) -> None:
     """Act, and wait for the next decision or the end of the play."""
     key = page.get_attribute("#decision", "data-key")
+    page.evaluate("() => { window.__clicks = 0; document.querySelector('#submit').addEventListener('click', () => window.__clicks++); }")
     page.click("#submit")
-    page.wait_for_function("""k => { const s = document.querySelector('#status').dataset.state;
-        const d = document.querySelector('#decision');
-        return s === 'finished' || (s === 'deciding' && !d.hidden && d.dataset.key !== k); }""",
-                           arg=key, timeout=ACT_TIMEOUT_MS)
+    try:
+        page.wait_for_function("""k => { const s = document.querySelector('#status').dataset.state;
+            const d = document.querySelector('#decision');
+            return s === 'finished' || (s === 'deciding' && !d.hidden && d.dataset.key !== k); }""",
+                               arg=key, timeout=ACT_TIMEOUT_MS)
+    except Exception as e:  # say what the page and the server were showing
+        shown = page.evaluate("""async () => ({clicks: window.__clicks, checked, status: document.querySelector('#status').dataset.state,
+            check: document.querySelector('#check').textContent, action: document.querySelector('#action').value,
+            submit_disabled: document.querySelector('#submit').disabled, conn: document.querySelector('#conn').dataset.state,
+            page_state: {version: state.version, busy: state.busy, decision: state.decision && state.decision.key},
+            server: await (await fetch('/api/state')).json().then(s => ({version: s.version, busy: s.busy,
+                decision: s.decision && s.decision.key, last: s.last, finished: s.finished, error: s.error}))})""")
+        raise AssertionError(f"no next decision after acting on {key} (clicks on Act that reached it: "
+                             f"{shown.pop('clicks')}): {json.dumps(shown)[:3000]}") from e
 
 
 def wait_for_decision(page) -> None:
     page.wait_for_selector("#status[data-state=deciding]", state="attached", timeout=ACT_TIMEOUT_MS)
+
+
+def screenshot(page, path: Path) -> None:
+    """The whole page. Chromium takes it by resizing the viewport, and moves the page back
+    afterwards: wait until it has (a click meanwhile can land where the button was)."""
+    page.screenshot(path=str(path), full_page=True)
+    page.evaluate("() => new Promise(done => requestAnimationFrame(() => requestAnimationFrame(done)))")
+    page.wait_for_timeout(300)
 
 
 def play_through(page, drive, texts: list[str], shot: Path | None = None, shot_at: int = 1) -> list[str]:
@@ -239,7 +258,7 @@ def play_through(page, drive, texts: list[str], shot: Path | None = None, shot_a
         assert len(written) < len(texts), f"the play goes on after the {len(texts)} actions given"
         written.append(set_action(page, drive, texts[len(written)]))
         if shot is not None and len(written) == shot_at:
-            page.screenshot(path=str(shot), full_page=True)
+            screenshot(page, shot)
         act(page)
     return written
 
@@ -338,7 +357,7 @@ def test_iphyre_and_kinetix_controls_write_their_actions(play, open_page, screen
     space = decision(page)["space"]
     vector = json.dumps([1 + i % 2 for i in range(space["num_motors"])] + [1] * space["num_thrusters"])
     set_action(page, drive_kinetix, vector)
-    page.screenshot(path=str(screenshots / "play_kinetix.png"), full_page=True)
+    screenshot(page, screenshots / "play_kinetix.png")
 
 
 def kinetix_level() -> str:

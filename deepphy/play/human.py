@@ -183,6 +183,11 @@ class Desk:
     def unlisten(self, queue: asyncio.Queue) -> None:
         self._listeners.discard(queue)
 
+    def close(self) -> None:
+        """Tell every listening page's stream to end (the server is stopping)."""
+        for queue in list(self._listeners):
+            queue.put_nowait(None)
+
     async def ask(self, request: ModelRequest, digest: str) -> tuple[str, float]:
         """Wait for the person's answer to `request`: (text, seconds the person took)."""
         pending = self.pending = Pending(request, digest)

@@ -56,13 +56,15 @@ class PlayServer:
             await response.write(sse("state", self.state()))
             while True:
                 try:
-                    await asyncio.wait_for(queue.get(), HEARTBEAT_S)
+                    version = await asyncio.wait_for(queue.get(), HEARTBEAT_S)
                 except asyncio.TimeoutError:
                     await response.write(b": heartbeat\n\n")
                     continue
-                await asyncio.sleep(0.02)
-                while not queue.empty():
-                    queue.get_nowait()
+                await asyncio.sleep(0.02)  # a burst of changes: one state
+                while version is not None and not queue.empty():
+                    version = queue.get_nowait()
+                if version is None:  # the server is stopping
+                    break
                 await response.write(sse("state", self.state()))
         except (ConnectionResetError, asyncio.CancelledError):
             pass
@@ -175,6 +177,11 @@ def make_app(server: PlayServer) -> web.Application:
         web.post("/api/answer", server.answer),
     ])
     replay.add_routes(app, server.replay_run_dir)
+
+    async def end_streams(app: web.Application) -> None:  # open event streams end now, not at their next heartbeat
+        server.desk.close()
+
+    app.on_shutdown.append(end_streams)
     return app
 
 
