@@ -1,4 +1,4 @@
-"""The `deepphy` command: run, report, envs, show, watch, solve, dashboard, plot, export."""
+"""The `deepphy` command: run, report, envs, show, watch, solve, dashboard, play, plot, export."""
 
 from __future__ import annotations
 
@@ -77,6 +77,23 @@ def build_parser() -> argparse.ArgumentParser:
     dash.add_argument("--address", help="also show every run live on this Ray cluster")
     dash.add_argument("--host", default="127.0.0.1", help="interface to listen on; default 127.0.0.1 (this machine only)")
     dash.add_argument("--port", type=int, default=8700, help="port; default 8700, 0 picks a free one")
+
+    play = sub.add_parser("play", help="play the tasks yourself in the browser, recorded as a run (model human:NAME)")
+    play.add_argument("--env", help="environment (see `deepphy envs`); default: the one of the run directory given, "
+                      "else iphyre")
+    play.add_argument("--player", help="your name (letters, digits, . _ -): the run's model is human:NAME; "
+                      "default: your login name")
+    play.add_argument("--out", help="run directory (an existing one resumes; its options are kept); default "
+                      "runs/human-<player>-<env>")
+    play.add_argument("--tasks", help="comma-separated task ids (default: the evaluation set)")
+    play.add_argument("--limit", type=int, help="only the first N tasks")
+    play.add_argument("--runs", type=int, help="repetitions of every task; default 1")
+    play.add_argument("--max-attempts", type=int, help="attempts per task (default: the protocol's, as models get)")
+    play.add_argument("--seed", type=int, help="seed (recorded with the run); default 0")
+    play.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
+                      help="environment option, e.g. annotate=false (repeatable)")
+    play.add_argument("--host", default="127.0.0.1", help="interface to listen on; default 127.0.0.1 (this machine only)")
+    play.add_argument("--port", type=int, default=8710, help="port; default 8710, 0 picks a free one")
 
     plot = sub.add_parser("plot", help="draw the paper's figures of one or more run directories (PNG and PDF)")
     plot.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
@@ -373,6 +390,59 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_play(args: argparse.Namespace) -> int:
+    import asyncio
+    import getpass
+
+    from deepphy.play.human import HUMAN_PREFIX, player_model
+    from deepphy.play.server import serve
+    from deepphy.play.session import PlaySession
+    from deepphy.runs.store import CONFIG, read_config
+
+    if not 0 <= args.port <= 65535:
+        raise UserError(f"--port must be 0..65535, got {args.port}")
+    asked = {"env": args.env, "runs": args.runs, "seed": args.seed, "limit": args.limit,
+             "max_attempts": args.max_attempts, "tasks": [t for t in args.tasks.split(",") if t] if args.tasks else None,
+             "env_options": _env_options(args.env_option) or None}
+    asked = {k: v for k, v in asked.items() if v is not None}
+    stored = read_config(args.out) if args.out and (Path(args.out) / CONFIG).exists() else None
+    try:
+        if stored is not None:  # resume: what is not asked for is kept
+            if not stored.model.startswith(HUMAN_PREFIX):
+                raise UserError(f"{args.out} holds a run of the model {stored.model}, not a person's")
+            player = args.player or stored.model.removeprefix(HUMAN_PREFIX)
+            config = RunConfig(**{**stored.model_dump(), **asked, "model": player_model(player)})
+        else:
+            player = args.player or getpass.getuser()
+            config = RunConfig(**{"env": "iphyre", "runs": 1, **asked, "model": player_model(player)})
+    except ValidationError as e:
+        err = e.errors()[0]
+        where = ".".join(map(str, err["loc"]))
+        raise UserError(f"{where + ': ' if where else ''}{err['msg'].removeprefix('Value error, ')}") from None
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    out = Path(args.out or f"runs/human-{player}-{config.env}")
+    session = PlaySession(config, out)
+
+    def announce(url: str) -> None:
+        print(f"play: {url}  (open it in a browser; Ctrl-C stops, the same command resumes)", flush=True)
+        if args.host not in ("127.0.0.1", "localhost", "::1"):
+            print(f"note: listening on {args.host}: whoever reaches this port can play in your name", file=sys.stderr)
+
+    def done(progress: dict) -> None:
+        print(f"play: {progress['episodes_done']}/{progress['episodes_total']} episodes played, {progress['solved']} "
+              f"solved -> {out} (`deepphy report {out}`); the page stays up for replays (Ctrl-C to stop)", flush=True)
+
+    try:
+        asyncio.run(serve(session, args.host, args.port, announce, done))
+    except OSError as e:
+        raise UserError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e} (--port 0 picks a free one)") \
+            from None
+    finally:
+        session.close()
+    return 0
+
+
 def cmd_plot(args: argparse.Namespace) -> int:
     from deepphy.metrics.report import mixed_task_sets, report_of
     from deepphy.plots import plot_all
@@ -420,7 +490,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_show, "watch": cmd_watch,
-            "solve": cmd_solve, "dashboard": cmd_dashboard, "plot": cmd_plot, "export": cmd_export,
+            "solve": cmd_solve, "dashboard": cmd_dashboard, "play": cmd_play, "plot": cmd_plot, "export": cmd_export,
             "repair": cmd_repair}
 
 

@@ -100,7 +100,9 @@ async def run_attempt(
         )
         t0 = time.perf_counter()
         response = await model.complete(request)
-        timing.model_s += time.perf_counter() - t0
+        seconds = response.seconds if response.seconds is not None else time.perf_counter() - t0
+        timing.model_s += seconds
+        timing.decision_s.append(round(seconds, 3))
         stats.usage = stats.usage + response.usage
         stats.retries += response.retries
         stats.images_dropped += response.images_dropped

@@ -125,9 +125,10 @@ class Scheduler:
         store: RunStore,
         env_workers: list[Any],
         model: ModelHandle,
-        metrics: Any,
+        metrics: Any,  # the metrics actor; None: no live figures (`deepphy play`)
         k_max: int,
         max_model_requeues: int = 5,
+        local_env: Any = None,  # a protocol.EnvHandle
     ) -> None:
         self.config = config
         self.runtime = runtime
@@ -141,6 +142,7 @@ class Scheduler:
         self.metrics = metrics
         self.k_max = k_max
         self.max_model_requeues = max_model_requeues
+        self.local_env = local_env  # `deepphy play`: one environment in this process instead of the workers
         self.failed: list[str] = []  # episodes left unfinished (model or worker failures, budget), for the caller
         self.errored: list[str] = []  # episodes whose attempt raised an unexpected error
         self.stop_requested = False
@@ -214,13 +216,15 @@ class Scheduler:
         """Hand the new attempts' summaries to the metrics actor, in one call."""
         if self.unsent:
             batch, self.unsent = self.unsent, []
-            self.metrics.add.remote(batch)
+            if self.metrics is not None:
+                self.metrics.add.remote(batch)
 
     async def _send_summaries_every(self, seconds: float) -> None:
         while True:
             await asyncio.sleep(seconds)
             self.send_summaries()
-            self.metrics.update.remote({**self.activity(), "phase": "running"})
+            if self.metrics is not None:
+                self.metrics.update.remote({**self.activity(), "phase": "running"})
 
     async def _attempt_with_retries(
         self, task: Task, run: int, attempt: int, previous: list[AttemptRecord]
@@ -251,6 +255,9 @@ class Scheduler:
             return record
 
     async def _attempt(self, task: Task, run: int, attempt: int, previous: list[AttemptRecord]) -> AttemptRecord:
+        if self.local_env is not None:
+            return await run_attempt(self.spec, self.prompt, self.config, task, run, attempt, previous,
+                                     self.local_env, self, self.store)
         index = min(range(len(self.env_workers)), key=lambda i: self.load[i])
         env = WorkerEnv(self.env_workers[index], f"{task.id}|{run}|{attempt}|{time.monotonic_ns()}",
                         self.runtime.step_timeout_s, self.initial)

@@ -24,6 +24,7 @@ from typing import Any
 from aiohttp import web
 
 from deepphy.dashboard.source import RunSource, is_run_dir, run_id, runs_in
+from deepphy.play import replay
 
 log = logging.getLogger(__name__)
 
@@ -384,6 +385,7 @@ def make_app(dashboard: Dashboard, token: str | None = None) -> web.Application:
         web.get("/files/{run}/{path:.+}", dashboard.frame),
         web.static("/static", STATIC),
     ])
+    replay.add_routes(app, lambda rid: dashboard.sources[rid].path if rid in dashboard.sources else None)
     app.on_startup.append(dashboard.start)
     app.on_shutdown.append(dashboard.stop)
     return app

@@ -24,7 +24,7 @@ import re
 from abc import ABC, abstractmethod
 from collections import OrderedDict
 from enum import Enum
-from typing import TYPE_CHECKING, Any, Callable, ClassVar, Sequence
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, NamedTuple, Sequence
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -231,4 +231,21 @@ class Environment(ABC):
     def step_many(cls, envs: Sequence["Environment"], actions: Sequence[Action]) -> list[StepResult]:
         """Step several instances at once. Environments that can batch (vmap) override this."""
         return [env.step(action) for env, action in zip(envs, actions)]
+
+    def film(self, action: Action) -> tuple[StepResult, list["Frame"]]:
+        """`step`, with pictures of the simulated world while it runs (about FILM_FPS per
+        simulated second), for watching a replay. The result must equal `step`'s. Optional:
+        by default the pictures are the step's key frames."""
+        result = self.step(action)
+        return result, [Frame(f.to_array(), f.caption) for f in result.key_frames]
+
+
+FILM_FPS = 12  # pictures per simulated second in a replay (Environment.film)
+
+
+class Frame(NamedTuple):
+    """One picture of the simulated world in a replay."""
+
+    rgb: np.ndarray
+    caption: str  # when it is, e.g. "t = 1.25 s"
 

@@ -51,6 +51,8 @@ class ModelResponse(BaseModel):
     usage: Usage = Field(default_factory=Usage)
     retries: int = 0  # transport retries it took (429, 5xx, timeouts)
     images_dropped: int = 0  # oldest images left out to meet the provider's per-request image limit
+    # The agent's own time for this answer (a person's, kept across a resume); None: the call's duration.
+    seconds: float | None = None
 
 
 class ModelError(RuntimeError):

@@ -58,6 +58,9 @@ class EnvPrompt(ABC):
         """WM only: what the prediction should describe (e.g. where the ball will land)."""
 
 
+CURRENT_OBSERVATION = "Current observation:"  # the text part after which a prompt shows the observation
+
+
 def _vla_instructions(example: str) -> str:
     return (
         "Reply with the action only, in exactly this syntax, and nothing else:\n"
@@ -110,7 +113,7 @@ def build_messages(
             parts.append(TextPart(text=line + (f" -> {past.feedback}" if past.feedback else "")))
             if past.frame is not None:
                 parts.append(ImagePart(image=past.frame))
-    parts.append(TextPart(text="Current observation:"))
+    parts.append(TextPart(text=CURRENT_OBSERVATION))
     for image in observation.images:
         parts.append(TextPart(text=image.caption))
         parts.append(ImagePart(image=image))

@@ -45,6 +45,7 @@ class Timing(BaseModel):
     finished: float = 0.0
     env_s: float = 0.0
     model_s: float = 0.0
+    decision_s: list[float] = Field(default_factory=list)  # per decision: the time the agent took to answer
 
 
 class ModelStats(BaseModel):

@@ -417,7 +417,9 @@ function attemptNode(ep, a, isOpen) {
   const u = a.model_stats.usage;
   return el("details", { class: "attempt", open: isOpen, "data-attempt": a.attempt },
     el("summary", {}, `Attempt ${a.attempt}`, status, a.stars !== null ? `${a.stars}★` : null,
-      el("span", { class: "outcome", text: a.feedback })),
+      el("span", { class: "outcome", text: a.feedback }),
+      el("a", { class: "replay", target: "_blank", text: "▶ replay", title: "the attempt simulated again, as an animation",
+        href: "/replay?" + new URLSearchParams({ run: ep.run_id, task: ep.task, r: ep.run, a: a.attempt }) })),
     el("div", { class: "attempt-body" },
       el("div", { class: "field", text: `${a.steps.length} decision(s) · env ${a.timing.env_s.toFixed(2)} s · model ${a.timing.model_s.toFixed(2)} s · tokens ${u.input_tokens}/${u.output_tokens} · $${u.cost_usd.toFixed(4)}` + (a.model_stats.retries ? ` · ${a.model_stats.retries} retries` : "") + (a.model_stats.model_errors ? ` · ${a.model_stats.model_errors} model errors` : "") }),
       a.steps.map((s) => stepNode(ep, a, s)),

@@ -26,7 +26,9 @@ from typing import Any
 import cv2
 import numpy as np
 
-from deepphy.envs.base import Action, Environment, Observation, ObservationCache, StepResult, Task
+from deepphy.envs.base import (
+    FILM_FPS, Action, Environment, Frame, Observation, ObservationCache, StepResult, Task,
+)
 from deepphy.envs.images import Image, draw_label, stack_frames
 from deepphy.envs.iphyre import SPEC
 from deepphy.envs.iphyre.space import MAX_TIME, IPhyrePlan, IPhyreSpace
@@ -80,9 +82,15 @@ class IPhyreEnv(Environment):
         ))
 
     def step(self, action: Action) -> StepResult:
+        return self._play(action, film=False)[0]
+
+    def film(self, action: Action) -> tuple[StepResult, list[Frame]]:
+        return self._play(action, film=True)
+
+    def _play(self, action: Action, film: bool) -> tuple[StepResult, list[Frame]]:
         assert isinstance(action, IPhyrePlan) and self._task is not None, "reset() first"
         clicks = [(self._centres[c.index], c.time) for c in action.clicks]
-        success, removed, end_time, frames = self._simulate(clicks)
+        success, removed, end_time, frames, pictures = self._simulate(clicks, film)
         end_time = round(end_time, 4)
         if success:
             feedback = f"all red balls left the scene at t = {end_time:.2f} s"
@@ -97,14 +105,15 @@ class IPhyreEnv(Environment):
             feedback=feedback,
             key_frames=[Image.from_array("outcome", "frames of what happened (left to right)", strip)],
             info={"end_time": end_time, "removed": removed},
-        )
+        ), pictures
 
     # -- simulation -----------------------------------------------------------------
 
-    def _simulate(self, clicks: list[tuple[tuple[float, float], float]]):
-        """iphyre's `simulate()` loop, with t = 0 firing at the first step, and key frames.
+    def _simulate(self, clicks: list[tuple[tuple[float, float], float]], film: bool = False):
+        """iphyre's `simulate()` loop, with t = 0 firing at the first step, and key frames
+        (and, with `film`, a picture FILM_FPS times per simulated second).
 
-        Returns (success, effective removals, end time, [(t, frame)]).
+        Returns (success, effective removals, end time, [(t, frame)], [Frame]).
         """
         # A fresh simulator per attempt: a reset pymunk space keeps internal state, and
         # outcomes must not depend on which attempts an instance ran before.
@@ -114,6 +123,9 @@ class IPhyreEnv(Environment):
         time_count = 0.0
         snapshots = [MAX_TIME / 4, MAX_TIME / 2, 3 * MAX_TIME / 4]
         frames: list[tuple[float, np.ndarray]] = []
+        pictures: list[Frame] = [Frame(self.render(), "t = 0.00 s")] if film else []
+        film_every = round(1 / (sim.timestep * FILM_FPS))  # physics steps between pictures
+        ticks = 0
         while time_count < sim.max_time:
             if step < len(clicks):
                 pos, t = clicks[step]
@@ -123,14 +135,17 @@ class IPhyreEnv(Environment):
                     step += 1
             sim.space.step(sim.timestep)
             time_count += sim.timestep
+            ticks += 1
+            if film and ticks % film_every == 0:
+                pictures.append(Frame(self.render(), f"t = {time_count:.2f} s"))
             if snapshots and time_count >= snapshots[0]:
                 frames.append((time_count, self.render()))
                 snapshots.pop(0)
             if sim.examine_success():
                 frames.append((time_count, self.render()))
-                return True, removed, time_count, frames
+                return True, removed, time_count, frames, pictures
         frames.append((time_count, self.render()))
-        return False, removed, time_count, frames
+        return False, removed, time_count, frames, pictures
 
     # -- rendering ------------------------------------------------------------------
 

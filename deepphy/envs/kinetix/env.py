@@ -31,7 +31,7 @@ from typing import Any, Literal, Sequence
 import numpy as np
 from pydantic import field_validator
 
-from deepphy.envs.base import Action, EnvOptions, Environment, Observation, StepResult, Task
+from deepphy.envs.base import FILM_FPS, Action, EnvOptions, Environment, Frame, Observation, StepResult, Task
 from deepphy.envs.images import Image
 from deepphy.envs.kinetix import SPEC
 from deepphy.envs.kinetix.levels import (
@@ -39,6 +39,7 @@ from deepphy.envs.kinetix.levels import (
     MAX_TIMESTEPS,
     SECONDS_PER_DECISION,
     SIZES,
+    STEPS_PER_DECISION,
     level_names,
     task_id,
 )
@@ -133,6 +134,22 @@ class KinetixEnv(Environment):
             for i, out in zip(idx, outs):
                 results[i] = envs[i]._after(actions[i], out)  # type: ignore[attr-defined]
         return results  # type: ignore[return-value]
+
+    def film(self, action: Action) -> tuple[StepResult, list[Frame]]:
+        """The step (the record's program), and pictures of its env steps from a program that
+        also returns the states on the way (it may round differently in the last bits)."""
+        from deepphy.envs.kinetix import sim
+
+        assert self._controls is not None and self._state is not None, "reset() first"
+        before, t0 = self._state, self._decision * SECONDS_PER_DECISION
+        firing = tuple(t for k, ts in enumerate(self._controls.thrusters) if action.thrusters[k] for t in ts)
+        path = sim.get_sim(self._level).path(before, self._vector(action))
+        result = self.step(action)
+        dt = SECONDS_PER_DECISION / STEPS_PER_DECISION
+        every = max(1, round(1 / (dt * FILM_FPS)))
+        steps = result.info["env_steps"]  # the episode may end before the decision's last env step
+        return result, [Frame(render(path[k - 1], firing), f"t = {t0 + k * dt:.2f} s")
+                        for k in range(1, steps + 1) if k % every == 0 or k == steps]
 
     # -- internals ------------------------------------------------------------------
 

@@ -181,26 +181,39 @@ class Sim:
         env = self.env
         key = jax.random.PRNGKey(0)  # unused by kinetix when auto_reset is off
 
+        def env_step(action, env_params, carry):
+            """One env step of an episode, frozen once the episode has ended."""
+            state, done, goal, reward, steps = carry
+            _, nxt, r, d, info = env.step(key, state, action, env_params)
+            live = ~done
+            state = jax.tree.map(lambda a, b: jnp.where(live, a, b), nxt, state)
+            goal = jnp.where(live, info["GoalR"], goal)
+            reward = jnp.where(live, r, reward)
+            steps = steps + live.astype(jnp.int32)
+            done = done | d
+            return state, done, goal, reward, steps
+
+        def start(state):
+            return state, jnp.bool_(False), jnp.bool_(False), jnp.float32(0.0), jnp.int32(0)
+
         def decision(state, action, env_params):
             """One episode's decision: 16 env steps, the state frozen once the episode ends."""
+            carry, _ = jax.lax.scan(lambda c, _: (env_step(action, env_params, c), None), start(state), None,
+                                    length=STEPS_PER_DECISION)
+            return carry
 
-            def body(carry, _):
-                state, done, goal, reward, steps = carry
-                _, nxt, r, d, info = env.step(key, state, action, env_params)
-                live = ~done
-                state = jax.tree.map(lambda a, b: jnp.where(live, a, b), nxt, state)
-                goal = jnp.where(live, info["GoalR"], goal)
-                reward = jnp.where(live, r, reward)
-                steps = steps + live.astype(jnp.int32)
-                done = done | d
-                return (state, done, goal, reward, steps), None
+        def path(state, action, env_params):
+            """The states after each of a decision's env steps (for pictures only: another
+            program than `decision`, which need not round alike)."""
+            def body(c, _):
+                c = env_step(action, env_params, c)
+                return c, c[0]
 
-            init = (state, jnp.bool_(False), jnp.bool_(False), jnp.float32(0.0), jnp.int32(0))
-            (state, done, goal, reward, steps), _ = jax.lax.scan(body, init, None, length=STEPS_PER_DECISION)
-            return state, done, goal, reward, steps
+            return jax.lax.scan(body, start(state), None, length=STEPS_PER_DECISION)[1]
 
         self.decision = decision  # unbatched and not jitted: for benchmarks and references
         self._fn = jax.jit(jax.vmap(decision, in_axes=(0, 0, None)))  # only ever called with BATCH lanes
+        self._path = jax.jit(jax.vmap(path, in_axes=(0, 0, None)))  # compiled on first use (replays)
 
     def decide(self, states: list[Any], actions: np.ndarray) -> list[DecisionOut]:
         """Run one decision for each (state, 6-vector action), `BATCH` episodes per call."""
@@ -230,6 +243,17 @@ class Sim:
                     )
                 )
         return outs
+
+    def path(self, state: Any, action: np.ndarray) -> list[Any]:
+        """The states after each env step of one decision, for watching it (`BATCH` lanes, as
+        `decide`). Not the record's program: its states may differ from `decide`'s in the
+        last bits."""
+        import jax
+
+        batch = jax.tree.map(lambda x: np.stack([x] * BATCH), state)
+        states = jax.device_get(self._path(batch, np.repeat(np.asarray(action, np.int32)[None], BATCH, axis=0),
+                                           self.env_params))
+        return [jax.tree.map(lambda x: x[0, k], states) for k in range(STEPS_PER_DECISION)]
 
 
 _sims: dict[Any, Sim] = {}

@@ -26,7 +26,9 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
-from deepphy.envs.base import Action, EnvOptions, Environment, Observation, ObservationCache, StepResult, Task
+from deepphy.envs.base import (
+    FILM_FPS, Action, EnvOptions, Environment, Frame, Observation, ObservationCache, StepResult, Task,
+)
 from deepphy.envs.images import Image, draw_label, stack_frames
 from deepphy.envs.phyre import SPEC, data, sim
 from deepphy.envs.phyre.render import render
@@ -40,6 +42,7 @@ SPACES: dict[str, PhyreSpace | PhyreContinuousSpace] = {
     "continuous": PhyreContinuousSpace(),
 }
 FRAME_EVERY = 10  # steps between recorded poses (key frames are picked from these)
+FILM_EVERY = sim.FPS // FILM_FPS  # steps between the pictures of a replay (5: divides FRAME_EVERY)
 KEY_FRAMES = 4
 OVERLAY = (255, 140, 0)  # grid lines and labels drawn over the scene
 
@@ -112,7 +115,21 @@ class PhyreEnv(Environment):
         ))
 
     def step(self, action: Action) -> StepResult:
+        return self._simulate(action, FRAME_EVERY)[0]
+
+    def film(self, action: Action) -> tuple[StepResult, list[Frame]]:
+        result, ball, outcome = self._simulate(action, FILM_EVERY)
+        if outcome is None:  # an invalid placement: nothing was simulated
+            return result, []
+        size = self.options.image_size
+        return result, [Frame(render(self._task, ball, poses, size=size), f"t = {step / sim.FPS:.2f} s")
+                        for step, poses in outcome.frames]
+
+    def _simulate(self, action: Action, frame_every: int) -> tuple[StepResult, Any, sim.Outcome | None]:
+        """The step, with poses recorded every `frame_every` steps (a divisor of FRAME_EVERY,
+        so that the key frames are the same whatever the replay needs)."""
         assert self._task is not None, "reset() first"
+        assert FRAME_EVERY % frame_every == 0
         task = self._task
         triple = self.space.to_phyre(action)
         info: dict[str, Any] = {"phyre_action": list(triple)}
@@ -120,8 +137,8 @@ class PhyreEnv(Environment):
             ball = sim.place(task, *triple)
         except InvalidPlacement as e:
             return StepResult(terminated=True, success=False, invalid_reason=str(e),
-                              feedback=f"invalid placement: {e}; nothing was simulated", info=info)
-        outcome = sim.simulate(task, ball, frame_every=FRAME_EVERY)
+                              feedback=f"invalid placement: {e}; nothing was simulated", info=info), None, None
+        outcome = sim.simulate(task, ball, frame_every=frame_every)
         return StepResult(
             terminated=outcome.end != "time_out",
             truncated=outcome.end == "time_out",  # 1000 steps ran out without a decision
@@ -130,7 +147,7 @@ class PhyreEnv(Environment):
             key_frames=[self._strip(task, ball, outcome)],
             info={**info, "ball_px": list(ball), "steps": outcome.steps, "simulated_steps": outcome.simulated,
                   "end": outcome.end, "touched": outcome.touched},
-        )
+        ), ball, outcome
 
     # -- images ---------------------------------------------------------------------------
 
@@ -153,7 +170,7 @@ class PhyreEnv(Environment):
         last recorded poses are the true poses of any later step."""
         end = outcome.steps if outcome.end != "time_out" else outcome.simulated
         targets = [round(end * k / KEY_FRAMES) for k in range(1, KEY_FRAMES + 1)]
-        frames = outcome.frames
+        frames = [f for f in outcome.frames if f[0] % FRAME_EVERY == 0 or f is outcome.frames[-1]]
         images, captions = [], []
         for target in targets:
             _, poses = max((f for f in frames if f[0] <= target), key=lambda f: f[0])

@@ -59,7 +59,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from deepphy.envs.base import Action, EnvOptions, Environment, Observation, StepResult, Task
+from deepphy.envs.base import FILM_FPS, Action, EnvOptions, Environment, Frame, Observation, StepResult, Task
 from deepphy.envs.images import Image
 from deepphy.envs.pooltool import SPEC
 from deepphy.envs.pooltool.render import _traces, render_table
@@ -135,6 +135,12 @@ class PooltoolEnv(Environment):
         return self.options.rules == "reference"  # type: ignore[attr-defined]
 
     def step(self, action: Action) -> StepResult:
+        return self._shoot(action, film=False)[0]
+
+    def film(self, action: Action) -> tuple[StepResult, list[Frame]]:
+        return self._shoot(action, film=True)
+
+    def _shoot(self, action: Action, film: bool) -> tuple[StepResult, list[Frame]]:
         assert isinstance(action, PoolShot) and self._system is not None
         pt = _pt()
         warm_up()
@@ -144,6 +150,7 @@ class PooltoolEnv(Environment):
         system.reset_history()
         system.strike(V0=action.velocity, phi=pt.aim.at_ball(system, target), theta=0.0, a=a, b=b)
         pt.simulate(system, engine=_engine(), inplace=True, max_events=MAX_EVENTS)
+        pictures = _film(system) if film else []
         self._shots += 1
         events = system.events
         potted = [e.agents[0].id for e in pt.events.filter_type(events, pt.EventType.BALL_POCKET)]
@@ -201,7 +208,7 @@ class PooltoolEnv(Environment):
             feedback=outcome,
             key_frames=[key],
             info=info,
-        )
+        ), pictures
 
     def _at(self, spot: tuple[float, float]) -> tuple[float, float]:
         return spot[0] * self._system.table.w, spot[1] * self._system.table.l
@@ -269,6 +276,19 @@ class PooltoolEnv(Environment):
             text="\n".join(lines),
             action_space=PoolSpace(),
         )
+
+
+def _film(system) -> list[Frame]:
+    """The shot just simulated, FILM_FPS pictures per second: pooltool's own interpolation
+    of the ball states between events (`continuize`), on a copy of the table."""
+    copy = _pt().continuize(system, dt=1 / FILM_FPS)
+    balls = list(copy.balls.values())
+    pictures = []
+    for k, state in enumerate(balls[0].history_cts.states):
+        for ball in balls:
+            ball.state = ball.history_cts.states[k]
+        pictures.append(Frame(render_table(copy), f"t = {state.t:.2f} s"))
+    return pictures
 
 
 def _first_hit(system) -> str | None:

@@ -1,0 +1,35 @@
+"""Slow work (physics, compiling, rendering films) off the event loop that serves the pages."""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from typing import Any, Callable
+
+
+async def off_loop(fn: Callable[..., Any], *args: Any) -> Any:
+    """`fn(*args)` in a daemon thread of its own: the pages are served meanwhile, and a
+    Ctrl-C need not wait for it (a warm-up compiling kernels for half a minute, say)."""
+    loop = asyncio.get_running_loop()
+    future = loop.create_future()
+
+    def settle(outcome: Any, failed: bool) -> None:
+        if future.done():  # the awaiting coroutine was cancelled
+            return
+        if failed:
+            future.set_exception(outcome)
+        else:
+            future.set_result(outcome)
+
+    def run() -> None:
+        try:
+            outcome, failed = fn(*args), False
+        except BaseException as e:  # noqa: BLE001 - handed to the awaiting coroutine
+            outcome, failed = e, True
+        try:
+            loop.call_soon_threadsafe(settle, outcome, failed)
+        except RuntimeError:  # the loop has closed (Ctrl-C): nobody waits any more
+            pass
+
+    threading.Thread(target=run, daemon=True, name=f"play-{getattr(fn, '__name__', 'call')}").start()
+    return await future

@@ -1,0 +1,205 @@
+"""The play page's web server (aiohttp): the page, the session's state as JSON and
+Server-Sent Events, the images of the waiting prompt, the person's answers, replays.
+
+Bound to 127.0.0.1 by default, and then answering only requests whose Host names this
+machine. Requests that change something (an answer) must come from the page itself: a JSON
+body, and an Origin (when the browser sends one) that is this server as the request reached
+it, so another web site open in the same browser cannot answer for the person.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from pathlib import Path
+from typing import Any, Callable
+from urllib.parse import urlsplit
+
+from aiohttp import web
+
+from deepphy.dashboard.source import run_id
+from deepphy.envs import InvalidAction
+from deepphy.play import replay
+from deepphy.play.human import MAX_ANSWER_CHARS, StaleDecision
+from deepphy.play.session import PlaySession
+
+STATIC = Path(__file__).parent / "static"
+HEARTBEAT_S = 15.0
+LOOPBACK_NAMES = {"127.0.0.1", "localhost", "::1"}
+
+
+class PlayServer:
+    def __init__(self, session: PlaySession, host: str) -> None:
+        self.session = session
+        self.desk = session.desk
+        self.host = host
+        self.run_id = run_id(session.path)
+
+    # -- pages and state ------------------------------------------------------------------
+
+    async def index(self, request: web.Request) -> web.StreamResponse:
+        return web.FileResponse(STATIC / "play.html", headers={"Cache-Control": "no-cache"})
+
+    def state(self) -> dict[str, Any]:
+        return {**self.session.state(), "run_id": self.run_id}
+
+    async def api_state(self, request: web.Request) -> web.Response:
+        return web.json_response(self.state())
+
+    async def events(self, request: web.Request) -> web.StreamResponse:
+        """The state, again whenever it changes (a burst of changes sends it once)."""
+        response = web.StreamResponse(headers={
+            "Content-Type": "text/event-stream", "Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+        await response.prepare(request)
+        queue = self.desk.listen()
+        try:
+            await response.write(sse("state", self.state()))
+            while True:
+                try:
+                    version = await asyncio.wait_for(queue.get(), HEARTBEAT_S)
+                except asyncio.TimeoutError:
+                    await response.write(b": heartbeat\n\n")
+                    continue
+                await asyncio.sleep(0.02)  # a burst of changes: one state
+                while version is not None and not queue.empty():
+                    version = queue.get_nowait()
+                if version is None:  # the server is stopping
+                    break
+                await response.write(sse("state", self.state()))
+        except (ConnectionResetError, asyncio.CancelledError):
+            pass
+        finally:
+            self.desk.unlisten(queue)
+        return response
+
+    async def prompt_image(self, request: web.Request) -> web.Response:
+        """An image of the waiting prompt (the observation's are in memory only)."""
+        pending = self.desk.pending
+        try:
+            index = int(request.match_info["index"])
+        except ValueError:
+            raise web.HTTPNotFound() from None
+        if pending is None or pending.digest != request.match_info["digest"] or not 0 <= index < len(pending.images):
+            raise web.HTTPNotFound(text="that decision is no longer waiting")
+        png = await asyncio.to_thread(pending.images[index].load)
+        return web.Response(body=png, content_type="image/png", headers={"Cache-Control": "max-age=3600"})
+
+    async def last_frame(self, request: web.Request) -> web.Response:
+        """A key frame of what the latest decision did."""
+        last, frames = self.session.last, self.session.last_frames
+        try:
+            index = int(request.match_info["index"])
+            ok = last is not None and str(last["id"]) == request.match_info["id"] and 0 <= index < len(frames)
+        except ValueError:
+            ok = False
+        if not ok:
+            raise web.HTTPNotFound(text="no such frame")
+        return web.Response(body=frames[index], content_type="image/png", headers={"Cache-Control": "max-age=3600"})
+
+    # -- answers --------------------------------------------------------------------------
+
+    async def _body(self, request: web.Request) -> tuple[str, str]:
+        origin = request.headers.get("Origin")
+        if origin is not None and not self._ours(origin, request.host):
+            raise web.HTTPForbidden(text="answers come from the play page only")
+        if request.content_type != "application/json":
+            raise web.HTTPUnsupportedMediaType(text="send JSON")
+        try:
+            body = await request.json()
+            key, text = body["key"], body["text"]
+        except (ValueError, KeyError, TypeError):
+            raise web.HTTPBadRequest(text='expected {"key": ..., "text": ...}') from None
+        if not isinstance(key, str) or not isinstance(text, str):
+            raise web.HTTPBadRequest(text="key and text must be strings")
+        if len(text) > MAX_ANSWER_CHARS:
+            raise web.HTTPBadRequest(text=f"an answer has at most {MAX_ANSWER_CHARS} characters")
+        return key, text
+
+    def _ours(self, origin: str, host: str) -> bool:
+        """An Origin naming this server as the request reached it; on loopback, by a name of
+        this machine (a page of another site whose name resolves here is not ours)."""
+        parts = urlsplit(origin)
+        if parts.netloc != host:
+            return False
+        return self.host not in LOOPBACK_NAMES or (parts.hostname or "") in LOOPBACK_NAMES
+
+    async def check(self, request: web.Request) -> web.Response:
+        """Whether text is an action of the waiting decision: its canonical text, or the reason."""
+        key, text = await self._body(request)
+        pending = self.desk.pending
+        if pending is None or pending.key != key:
+            return web.json_response({"ok": False, "stale": True, "error": "this decision is no longer waiting"})
+        try:
+            return web.json_response({"ok": True, "action": pending.check(text)})
+        except InvalidAction as e:
+            return web.json_response({"ok": False, "error": str(e)})
+
+    async def answer(self, request: web.Request) -> web.Response:
+        key, text = await self._body(request)
+        try:
+            action = self.desk.answer(key, text)
+        except StaleDecision as e:
+            raise web.HTTPConflict(text=str(e)) from None
+        except InvalidAction as e:
+            raise web.HTTPBadRequest(text=f"not an action: {e}") from None
+        return web.json_response({"ok": True, "action": action})
+
+    def replay_run_dir(self, rid: str) -> Path | None:
+        return self.session.path if rid == self.run_id else None
+
+
+def sse(event: str, payload: Any) -> bytes:
+    return f"event: {event}\ndata: {json.dumps(payload, separators=(',', ':'))}\n\n".encode()
+
+
+def loopback_only(server: PlayServer):
+    """Listening on loopback, requests must name this machine (Host): a web page elsewhere
+    whose name resolves here (DNS rebinding) reads and answers nothing."""
+
+    @web.middleware
+    async def check(request: web.Request, handler):
+        if server.host in LOOPBACK_NAMES and urlsplit(f"//{request.host}").hostname not in LOOPBACK_NAMES:
+            raise web.HTTPForbidden(text="this page answers only to a loopback Host (127.0.0.1, localhost)")
+        return await handler(request)
+
+    return check
+
+
+def make_app(server: PlayServer) -> web.Application:
+    app = web.Application(client_max_size=64 * 1024, middlewares=[loopback_only(server)])
+    app.add_routes([
+        web.get("/", server.index),
+        web.get("/api/state", server.api_state),
+        web.get("/api/events", server.events),
+        web.get("/api/prompt/{digest}/{index}.png", server.prompt_image),
+        web.get("/api/last/{id}/{index}.png", server.last_frame),
+        web.post("/api/check", server.check),
+        web.post("/api/answer", server.answer),
+    ])
+    replay.add_routes(app, server.replay_run_dir)
+
+    async def end_streams(app: web.Application) -> None:  # open event streams end now, not at their next heartbeat
+        server.desk.close()
+
+    app.on_shutdown.append(end_streams)
+    return app
+
+
+async def serve(session: PlaySession, host: str, port: int, announce: Callable[[str], None],
+                done: Callable[[dict[str, Any]], None]) -> None:
+    """Serve the page while the session plays, and after (replays) until cancelled.
+    `announce(url)` is called once the socket listens, before the environment loads;
+    `done(progress)` once every episode is played."""
+    runner = web.AppRunner(make_app(PlayServer(session, host)), access_log=None)
+    await runner.setup()
+    site = web.TCPSite(runner, host, port)
+    await site.start()
+    bound = runner.addresses[0]
+    shown = f"[{bound[0]}]" if ":" in bound[0] else bound[0]
+    announce(f"http://{shown}:{bound[1]}/")
+    try:
+        await session.play()
+        done(session.state()["progress"])
+        await asyncio.Event().wait()
+    finally:
+        await runner.cleanup()
