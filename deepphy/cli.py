@@ -394,6 +394,7 @@ def cmd_play(args: argparse.Namespace) -> int:
     import asyncio
     import getpass
 
+    from deepphy.play import background
     from deepphy.play.human import HUMAN_PREFIX, player_model
     from deepphy.play.server import serve
     from deepphy.play.session import PlaySession
@@ -438,6 +439,15 @@ def cmd_play(args: argparse.Namespace) -> int:
     except OSError as e:
         raise UserError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e} (--port 0 picks a free one)") \
             from None
+    except KeyboardInterrupt:
+        session.close()
+        if background.still_working():
+            # A thread inside a simulator's C++ (Kinetix compiling, say) aborts Python's exit
+            # ("terminate called ..."): the play is saved, so leave without finalizing.
+            print(INTERRUPTED, file=sys.stderr, flush=True)
+            sys.stdout.flush()
+            os._exit(130)
+        raise
     finally:
         session.close()
     return 0
@@ -489,6 +499,8 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+INTERRUPTED = "deepphy: interrupted; run the same command again to resume"
+
 COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_show, "watch": cmd_watch,
             "solve": cmd_solve, "dashboard": cmd_dashboard, "play": cmd_play, "plot": cmd_plot, "export": cmd_export,
             "repair": cmd_repair}
@@ -513,7 +525,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.close()
         return 0
     except KeyboardInterrupt:
-        print("deepphy: interrupted; run the same command again to resume", file=sys.stderr)
+        print(INTERRUPTED, file=sys.stderr)
         return 130
     except Exception as e:  # noqa: BLE001 - a bug: one line here, the whole traceback in a file
         return _crashed(e)

@@ -57,3 +57,11 @@ def ray_cluster():
 def deepphy_cmd():
     """The CLI, run with this interpreter."""
     return [sys.executable, "-m", "deepphy.cli"]
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """deepphy play's background work (a Kinetix warm-up still compiling after its test) must
+    end before Python's exit, which aborts inside it ("terminate called ...")."""
+    background = sys.modules.get("deepphy.play.background")
+    if background is not None:
+        background.wait(600)

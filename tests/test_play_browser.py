@@ -12,7 +12,6 @@ The actions come from the environments' own data: a PHYRE grid action that solve
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
 import sys
@@ -28,30 +27,11 @@ from deepphy.envs import ActionSpace, get_spec
 from deepphy.play.human import JOURNAL
 from deepphy.runs.store import read_records
 from play_support import PlayThread, model_run, person_run, same_records
-from test_dashboard_browser import CHROMIUM, CHROMIUM_ARGS
+from test_dashboard_browser import CHROMIUM, browser, screenshots  # noqa: F401 (fixtures)
 
 pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"needs Debian's chromium at {CHROMIUM}")
 ACT_TIMEOUT_MS = 180_000  # a decision's physics, on a loaded machine (Pooltool's first shot compiles if uncached)
 ENVS = Path(__file__).resolve().parents[1] / "deepphy" / "envs"
-
-
-@pytest.fixture(scope="module")
-def browser(tmp_path_factory):
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        context = p.chromium.launch_persistent_context(
-            str(tmp_path_factory.mktemp("chromium-profile")), executable_path=CHROMIUM, headless=True,
-            args=CHROMIUM_ARGS, viewport={"width": 1400, "height": 1000})
-        yield context
-        context.close()
-
-
-@pytest.fixture
-def screenshots(tmp_path):
-    out = Path(os.environ.get("DEEPPHY_SCREENSHOTS", tmp_path))
-    out.mkdir(parents=True, exist_ok=True)
-    return out
 
 
 @pytest.fixture

@@ -6,6 +6,19 @@ import asyncio
 import threading
 from typing import Any, Callable
 
+_threads: set[threading.Thread] = set()
+
+
+def still_working() -> bool:
+    """Whether some of this work is still running (a warm-up compiling, a film)."""
+    return any(thread.is_alive() for thread in _threads)
+
+
+def wait(timeout_s: float) -> None:
+    """Let the work under way finish (for a process that must exit normally)."""
+    for thread in list(_threads):
+        thread.join(timeout_s)
+
 
 async def off_loop(fn: Callable[..., Any], *args: Any) -> Any:
     """`fn(*args)` in a daemon thread of its own: the pages are served meanwhile, and a
@@ -31,5 +44,8 @@ async def off_loop(fn: Callable[..., Any], *args: Any) -> Any:
         except RuntimeError:  # the loop has closed (Ctrl-C): nobody waits any more
             pass
 
-    threading.Thread(target=run, daemon=True, name=f"play-{getattr(fn, '__name__', 'call')}").start()
+    thread = threading.Thread(target=run, daemon=True, name=f"play-{getattr(fn, '__name__', 'call')}")
+    _threads.difference_update([t for t in _threads if not t.is_alive()])
+    _threads.add(thread)
+    thread.start()
     return await future
