@@ -43,12 +43,19 @@ OMNOM_RADIUS = 40.0  # drawn body (the body itself does not collide)
 STAR_RADIUS = 20.0  # a star is collected when the candy's edge touches its circle
 
 # -- ropes, pins, active pins, spiders ------------------------------------------------------
-# A rope is one pymunk SlideJoint (0 <= distance <= length) from its pin to the candy: slack
-# when the candy is closer than the rope's length, taut (a pendulum) at that length; drawn as
-# a sagging curve when slack. Cutting it removes the joint: the candy keeps its velocity.
+# A rope is an elastic segment from its pin to the candy's centre with a rest length: slack
+# (it pulls nothing) while the candy is closer than that, a stiff spring once stretched beyond
+# it. It swings the candy like a pendulum (stretched ~1 px per candy weight it carries), gives
+# when jerked taut and throws the candy back (a damped bounce), and a rope that starts shorter
+# than the pin-candy distance (a stretched rope, drawn red) contracts at once and throws the
+# candy toward its pin, as the web game's Verlet chains do (its light nodes carry ~2 % of
+# the candy's mass, so the rope's own mass is left out). Ropes pass through everything, as
+# in the web game (no rope collides there). Cutting it removes it: the candy keeps its velocity.
 PIN_RADIUS = 7.0  # drawn
-ROPE_TAUT_SLACK = 1.0  # a rope within this many units of its length is drawn straight (taut)
-TENSION_RED = 2.5  # rope tension, in candy weights, at which a rope is drawn fully red
+ROPE_STIFFNESS = 1.0  # candy weights of tension per px of stretch (omega = sqrt(g / 1 px) ~ 29 rad/s)
+ROPE_DAMPING = 18.0  # 1/s: tension (x candy mass) per px/s of stretching speed, only while stretched;
+#                      damping ratio ~0.3: a rope jerked taut throws the candy back at ~0.35 x its speed
+ROPE_RED_STRETCH = 12.0  # px of stretch at which a rope is drawn fully red (the web game's red ropes)
 ACTIVE_PIN_MARGIN = 0.0  # an active pin attaches a rope when the candy centre is within radius + margin
 SPIDER_SPEED = 58.0  # units/s a spider crawls along its rope toward the candy (39 map units/s x 1.5)
 

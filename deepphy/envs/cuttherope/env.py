@@ -213,10 +213,12 @@ def describe(world: World, actions_taken: int) -> str:
             if r.candy != i:
                 continue
             label = f"P{r.sid}" if r.source == "pin" else f"A{r.sid}"
-            d = math.hypot(c.x - r.ax, c.y - r.ay)
-            state = "taut" if r.length - d <= C.ROPE_TAUT_SLACK else "slack"
-            ropes.append(f"{label} ({state}, length {r.length:.0f}" + (f", tension {r.tension:.1f} candy weights)"
-                                                                     if state == "taut" else ")"))
+            stretch = world.rope_stretch(r)
+            if stretch > 0.0:
+                state = f"taut, stretched {stretch:.1f} px, pulling {world.rope_tension(r):.1f} candy weights"
+            else:
+                state = f"slack by {-stretch:.1f} px, pulling nothing"
+            ropes.append(f"{label} (rest length {r.length:.0f}, {state})")
         held = "held by the ropes of " + ", ".join(ropes) if ropes else "held by no rope"
         bubble = f"; inside bubble B{carried[i]}" if i in carried else ""
         lines.append(f"{name}: at {_xy((c.x, c.y))}, velocity {_xy((c.vx, c.vy))} px/s; {held}{bubble}.")

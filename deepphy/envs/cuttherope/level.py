@@ -33,6 +33,7 @@ BOX_THEMES = {
     5: "two candy halves",
 }
 
+MIN_STRETCHED = 0.5  # a stretched rope's rest length is at least this share of its pin-candy distance
 Coord = Annotated[float, Field(ge=-200, le=1000, allow_inf_nan=False)]
 Point = tuple[Coord, Coord]
 Angle = Annotated[float, Field(ge=-360, le=360, allow_inf_nan=False)]
@@ -53,7 +54,8 @@ class SpiderSpec(_Model):
 class PinSpec(_Model):
     pos: Point
     candy: int = Field(0, ge=0, le=1)  # index into Level.candies of the candy its rope holds
-    length: float | None = Field(None, gt=0, le=2000)  # rope length; None = the initial pin-candy distance
+    length: float | None = Field(None, gt=0, le=2000)  # rest length; None = the initial pin-candy distance;
+    #                                                    shorter than that distance: a stretched rope
     spider: SpiderSpec | None = None  # a spider starting at this pin, crawling down the rope
 
 
@@ -139,8 +141,9 @@ class Level(_Model):
             if pin.candy >= len(self.candies):
                 raise ValueError(f"pin {i} holds candy {pin.candy}, but the level has {len(self.candies)}")
             d = math.dist(pin.pos, self.candies[pin.candy].pos)
-            if pin.length is not None and pin.length < d - 1e-6:
-                raise ValueError(f"pin {i}: rope length {pin.length} is shorter than the distance {d:.1f} to its candy")
+            if pin.length is not None and pin.length < MIN_STRETCHED * d:
+                raise ValueError(f"pin {i}: rope length {pin.length} is less than {MIN_STRETCHED:g} x the distance "
+                                 f"{d:.1f} to its candy")
         for name, p in [("Om Nom", self.om_nom), *(("star", s) for s in self.stars),
                         *(("candy", c.pos) for c in self.candies)]:
             if not (0 <= p[0] <= WIDTH and 0 <= p[1] <= HEIGHT):

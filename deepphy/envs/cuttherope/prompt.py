@@ -21,10 +21,12 @@ the screen.
   instead: they join into one candy when they touch, and Om Nom eats only a whole candy.
 - Om Nom: the round green creature with his mouth open in the middle. The level is won the
   moment the candy's centre comes within {C.MOUTH_RADIUS:g} px of his centre, from any side.
-- Ropes: lines from a pin to the candy. A rope never stretches beyond its length: a taut rope
-  holds the candy like a pendulum (it swings), a slack rope sags and pulls nothing. The more
-  a rope is stretched the redder it is drawn. Cutting a rope lets the candy fly on with the
-  velocity it had at that moment.
+- Ropes: lines from a pin to the candy. A rope pulls only when stretched beyond its length:
+  slack (drawn sagging) it pulls nothing; taut it holds the candy like a pendulum (it swings)
+  and gives a little, like a stiff elastic; jerked taut it bounces the candy back. A rope
+  drawn red is stretched: it contracts fast and throws the candy toward its pin. Cutting a
+  rope lets the candy fly on with the velocity it had at that moment. Ropes pass through
+  everything.
 - Pins (gray dots, yellow labels P1, P2, ...): each holds one rope.
 - Active pins (blue dots in a dashed blue circle, labels A1, ...): when the candy's centre
   enters the dashed circle, a new rope attaches from that pin (as long as the candy's distance

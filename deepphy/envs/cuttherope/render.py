@@ -3,8 +3,8 @@
 Legend (the prompt repeats it):
 - candy: red disc with white stripes (box 5: two smaller pink halves);
 - Om Nom: the round green creature with an open mouth (dark red) in his middle;
-- ropes: brown lines from a pin to the candy, redder the more they are stretched; a slack
-  rope sags;
+- ropes: brown lines from a pin to the candy, redder the more they are stretched (fully red
+  at ROPE_RED_STRETCH px); a slack rope sags;
 - pins: dark gray dots labelled P1, P2, ...;
 - active pins: blue dots inside a dashed blue circle, labelled A1, ...: a rope attaches
   when the candy enters the circle (faded once used);
@@ -94,7 +94,7 @@ def render(world: World, *, labels: bool = True, trail: bool = False, banner: st
         c = world.candies[rope.candy]
         path = _rope_path((rope.ax, rope.ay), (c.x, c.y), rope.length)
         rope_paths[(rope.source, rope.sid)] = path
-        f = min(1.0, max(0.0, (rope.tension - 0.5) / (C.TENSION_RED - 0.5)))
+        f = min(1.0, max(0.0, world.rope_stretch(rope) / C.ROPE_RED_STRETCH))
         colour = tuple(int(round(a + (b - a) * f)) for a, b in zip(ROPE, ROPE_TAUT))
         cv2.polylines(img, [np.round(path).astype(np.int32)], False, colour, 3, cv2.LINE_AA)
     for k, pin in enumerate(level.pins):
@@ -143,9 +143,9 @@ def _blend(img: np.ndarray, overlay: np.ndarray, alpha: float) -> None:
 
 def _rope_path(a, b, length: float) -> np.ndarray:
     """The drawn rope: straight when taut, a sagging parabola when slack (its arc length
-    close to the rope's length)."""
+    close to the rope's rest length)."""
     d = math.dist(a, b)
-    if length - d <= C.ROPE_TAUT_SLACK:
+    if length - d <= 0.0:
         return np.array([a, b], float)
     sag = min(length / 2, math.sqrt(3.0 / 8.0 * max(d, 1.0) * (length - d)))
     mid = ((a[0] + b[0]) / 2, (a[1] + b[1]) / 2 + 2 * sag)  # control point of a quadratic Bezier

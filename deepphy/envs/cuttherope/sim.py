@@ -9,9 +9,12 @@ living across decisions (the project's determinism rule: never copy a space).
 
 Dynamics (constants.py has every number):
 - a candy is a pymunk body (no shape: nothing collides with it) under gravity;
-- a rope is a SlideJoint from its pin to the candy centre, 0 <= distance <= length: slack
-  when the candy is closer, a taut pendulum at its length; cutting removes the joint, so
-  the candy flies on with the swing's velocity;
+- a rope is an elastic segment from its pin to the candy centre: it pulls nothing while
+  slack (shorter than its rest length) and pulls like a stiff damped spring once stretched
+  beyond it, so it swings the candy, gives and bounces back when jerked taut, and a rope that
+  starts stretched contracts and throws the candy; its force is applied to the candy's body
+  before every physics step; cutting it removes it, so the candy flies on with the swing's
+  velocity;
 - a bubble that captures the candy replaces gravity by a lift with drag (velocity relaxes
   to BUBBLE_RISE_SPEED upward); it carries the candy until popped;
 - a puff of an air cushion changes the velocity of a candy inside the cushion's column, by
@@ -40,6 +43,8 @@ import pymunk
 from deepphy.envs.cuttherope import constants as C
 from deepphy.envs.cuttherope.level import Level
 
+ROPE_K = C.ROPE_STIFFNESS * C.CANDY_MASS * C.GRAVITY  # force per unit of stretch
+ROPE_C = C.ROPE_DAMPING * C.CANDY_MASS  # force per unit/s of stretching speed
 PUFF_DELAY_STEPS = round(C.PUFF_DELAY * C.STEPS_PER_SECOND)
 PUFF_GAP_STEPS = round(C.PUFF_GAP * C.STEPS_PER_SECOND)
 
@@ -81,9 +86,8 @@ class Rope:
     sid: int  # id (1-based) of its pin or active pin
     ax: float  # anchor (the pin)
     ay: float
-    length: float
+    length: float  # rest length: the rope pulls once the candy is farther than this
     candy: int  # index into World.candies
-    tension: float = 0.0  # in candy weights, at the end of the last advance
 
 
 @dataclass
@@ -147,10 +151,6 @@ class World:
         world.bubbles = [Bubble(b.pos[0], b.pos[1]) for b in level.bubbles]
         world.active_pins = [ActivePin(a.pos[0], a.pos[1], a.radius) for a in level.active_pins]
         world.stars = [False] * len(level.stars)
-        probe = world.snapshot()  # what the ropes pull at t = 0 (for the picture and the text)
-        probe.advance(1)
-        for rope, probed in zip(world.ropes, probe.ropes):
-            rope.tension = probed.tension
         return world
 
     # -- snapshots (the oracle) -------------------------------------------------------------
@@ -184,6 +184,28 @@ class World:
 
     def rope_of_active_pin(self, pin: int) -> Rope | None:
         return next((r for r in self.ropes if r.source == "active" and r.sid == pin), None)
+
+    def rope_pull(self, rope: Rope) -> tuple[float, float, float]:
+        """(tension in force units, unit vector from the pin to the candy): the rope's pull on
+        its candy now, a damped spring on the stretch beyond the rest length; 0 when slack (a
+        rope never pushes)."""
+        c = self.candies[rope.candy]
+        dx, dy = c.x - rope.ax, c.y - rope.ay
+        d = math.hypot(dx, dy)
+        if d <= rope.length or d == 0.0:
+            return 0.0, 0.0, 0.0
+        ux, uy = dx / d, dy / d
+        tension = ROPE_K * (d - rope.length) + ROPE_C * (c.vx * ux + c.vy * uy)
+        return max(tension, 0.0), ux, uy
+
+    def rope_tension(self, rope: Rope) -> float:
+        """What the rope pulls now, in weights of a whole candy."""
+        return self.rope_pull(rope)[0] / (C.CANDY_MASS * C.GRAVITY)
+
+    def rope_stretch(self, rope: Rope) -> float:
+        """How far the candy is beyond the rope's rest length (negative: slack by that much)."""
+        c = self.candies[rope.candy]
+        return math.hypot(c.x - rope.ax, c.y - rope.ay) - rope.length
 
     def available(self) -> dict[str, list[int]]:
         """Ids that an action can name now: pins whose rope is still attached, active pins
@@ -251,7 +273,7 @@ class World:
         self.trail = []
         if self.decided or steps <= 0:
             return
-        space, bodies, joints = self._build_space()
+        space, bodies = self._build_space()
         end = self.step_count + steps
         while self.step_count < end and not self.decided:
             self._apply_puffs(bodies)
@@ -268,10 +290,7 @@ class World:
             if self.decided:
                 break
             if changed:
-                self._sync_space(space, bodies, joints)
-        for rope, joint in joints:
-            weight = self.candies[rope.candy].mass * C.GRAVITY
-            rope.tension = joint.impulse / C.DT / weight if any(r is rope for r in self.ropes) else 0.0
+                self._sync_space(space, bodies)
         self.sync_bubbles()
 
     def run_on(self, max_steps: int) -> None:
@@ -286,30 +305,18 @@ class World:
         for i, c in enumerate(self.candies):
             if c.alive:
                 bodies[i] = _add_body(space, c)
-        joints = self._add_joints(space, bodies)
         self._set_buoyancy(bodies)
-        return space, bodies, joints
-
-    def _add_joints(self, space: pymunk.Space, bodies: dict[int, pymunk.Body]) -> list[tuple[Rope, pymunk.SlideJoint]]:
-        joints = []
-        for rope in self.ropes:
-            joint = pymunk.SlideJoint(space.static_body, bodies[rope.candy], (rope.ax, rope.ay), (0.0, 0.0),
-                                      0.0, rope.length)
-            space.add(joint)
-            joints.append((rope, joint))
-        return joints
+        return space, bodies
 
     def _set_buoyancy(self, bodies: dict[int, pymunk.Body]) -> None:
+        """Each body's velocity update: gravity (or a bubble's lift) plus its ropes' pull."""
         carried = {b.candy for b in self.bubbles if b.candy is not None and not b.popped}
         for i, body in bodies.items():
-            body.velocity_func = _buoyant if i in carried else pymunk.Body.update_velocity
+            body.velocity_func = _velocity_update([r for r in self.ropes if r.candy == i], i in carried)
 
-    def _sync_space(self, space: pymunk.Space, bodies: dict[int, pymunk.Body], joints: list) -> None:
-        """After a rule changed ropes, bubbles or candies: make the space match the state
+    def _sync_space(self, space: pymunk.Space, bodies: dict[int, pymunk.Body]) -> None:
+        """After a rule changed bubbles or candies: make the space match the state
         (positions and velocities of bodies that stay are kept as they are)."""
-        for _, joint in joints:
-            space.remove(joint)
-        joints.clear()
         for i in list(bodies):
             c = self.candies[i]
             if not c.alive:
@@ -320,7 +327,6 @@ class World:
         for i, c in enumerate(self.candies):
             if c.alive and i not in bodies:
                 bodies[i] = _add_body(space, c)
-        joints.extend(self._add_joints(space, bodies))
         self._set_buoyancy(bodies)
 
     def _apply_puffs(self, bodies: dict[int, pymunk.Body]) -> None:
@@ -500,11 +506,32 @@ def _add_body(space: pymunk.Space, candy: Candy) -> pymunk.Body:
     return body
 
 
-def _buoyant(body: pymunk.Body, gravity, damping: float, dt: float) -> None:
-    """Velocity update inside a bubble: gravity replaced by a lift, with drag, so the
-    velocity relaxes to BUBBLE_RISE_SPEED upward."""
-    lift = -C.BUBBLE_DRAG * C.BUBBLE_RISE_SPEED
-    pymunk.Body.update_velocity(body, (0.0, lift), math.exp(-C.BUBBLE_DRAG * dt), dt)
+def _velocity_update(ropes: list[Rope], buoyant: bool):
+    """A body's velocity update for pymunk: gravity, or inside a bubble a lift with drag (the
+    velocity relaxes to BUBBLE_RISE_SPEED upward), plus the pull of its ropes. pymunk moves
+    the bodies before it updates their velocities, so the ropes pull from where the body is
+    after this step's move: symplectic Euler, which keeps a swing's energy."""
+    anchors = [(r.ax, r.ay, r.length) for r in ropes]
+
+    def update(body: pymunk.Body, gravity, damping: float, dt: float) -> None:
+        gx, gy = gravity
+        if buoyant:
+            gx, gy, damping = 0.0, -C.BUBBLE_DRAG * C.BUBBLE_RISE_SPEED, math.exp(-C.BUBBLE_DRAG * dt)
+        if anchors:
+            (px, py), (vx, vy) = body.position, body.velocity
+            inv_mass = 1.0 / body.mass
+            for ax, ay, length in anchors:
+                dx, dy = px - ax, py - ay
+                d = math.hypot(dx, dy)
+                if d > length:
+                    ux, uy = dx / d, dy / d
+                    tension = ROPE_K * (d - length) + ROPE_C * (vx * ux + vy * uy)
+                    if tension > 0.0:
+                        gx -= tension * ux * inv_mass
+                        gy -= tension * uy * inv_mass
+        pymunk.Body.update_velocity(body, (gx, gy), damping, dt)
+
+    return update
 
 
 def _point_segment_distance(p, a, b) -> float:

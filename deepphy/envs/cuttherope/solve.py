@@ -10,8 +10,8 @@
     deepphy solve --env cuttherope search [--levels ...] [--nodes N] [--jobs N] [--write]
         Run the oracle search (oracle.py) on the stored levels from scratch, with a budget
         of N simulated moves per level (machine-independent), report what it finds, and
-        with --write store the best plan found where it has more stars than the stored one
-        (or the level has none). Minutes.
+        with --write store the best plan found where it has more stars than the stored one,
+        or the stored one no longer wins (after a change of the rules). Minutes.
 
     deepphy solve --env cuttherope generate [--boxes 1,2] [--jobs N] [--nodes N]
         Remake the level files of the given boxes with the seeded procedures of design.py:
@@ -183,6 +183,12 @@ def _search_job(args: tuple[str, int]) -> dict:
             "plan": best.texts if best else None, "nodes": found.nodes, "seconds": round(found.seconds, 1)}
 
 
+def _still_wins(level: Level, plan: Solution) -> bool:
+    """The stored plan still wins with its stars, using all its actions."""
+    out = replay(level, plan.actions)
+    return out["success"] and out["stars"] == plan.stars and out["actions"] == len(plan.actions)
+
+
 def run_search(ids: list[str], nodes: int, jobs: int, write: bool) -> int:
     with ProcessPoolExecutor(max_workers=jobs) as pool:
         results = list(pool.map(_search_job, [(i, nodes) for i in ids]))
@@ -192,7 +198,8 @@ def run_search(ids: list[str], nodes: int, jobs: int, write: bool) -> int:
         if write and r["found"]:
             level = load_level(r["level"])
             stored = level.solution
-            if stored is None or r["stars"] > stored.stars:
+            stale = stored is None or not _still_wins(level, stored)
+            if stale or r["stars"] > stored.stars:
                 check = replay(level, r["plan"])
                 if check["success"]:
                     save_level(level.model_copy(update={"solution": Solution(
