@@ -286,7 +286,7 @@ def test_an_active_pin_attaches_a_rope_when_the_candy_enters_its_circle():
 
 
 def test_two_halves_join_with_momentum_conserved_and_only_a_whole_candy_is_eaten():
-    level = make(candies=[{"pos": (180, 300)}, {"pos": (300, 300)}], om_nom=(240, 310))
+    level = make(candies=[{"pos": (180, 300)}, {"pos": (300, 300)}], om_nom=(240, 420))
     w = world_of(level)
     w.candies[0].vx, w.candies[1].vx = 200.0, -100.0
     w.advance(40)
@@ -294,7 +294,39 @@ def test_two_halves_join_with_momentum_conserved_and_only_a_whole_candy_is_eaten
     assert w.status == "won"  # the whole candy falls into the mouth right under it
     apart = world_of(make(candies=[{"pos": (240, 280)}, {"pos": (100, 100)}], om_nom=(240, 330)))
     apart.advance(30)
-    assert apart.status == "playing"  # a half passes Om Nom by
+    assert apart.status == "lost" and "half" in apart.reason  # he ate a half: the level needs the whole candy
+
+
+def test_the_candy_does_not_pass_through_a_wall():
+    # Thrown hard at a wall, the candy bounces off it (elastically, a little) and stays on its side.
+    w = world_of(make(candies=[{"pos": (100, 300)}], walls=[{"a": (300, 100), "b": (300, 500)}]))
+    w.candies[0].vx, w.candies[0].vy = 1500.0, -400.0
+    xs = []
+    for _ in range(60):
+        w.advance(1)
+        xs.append(w.candies[0].x)
+    assert max(xs) <= 300 - C.WALL_RADIUS - C.CANDY_RADIUS + 1500.0 * STEP  # at most one step's travel into it
+    assert xs[-1] < 200 and w.candies[0].vx == pytest.approx(-C.CANDY_ELASTICITY * 1500.0, rel=0.1)
+    # dropped on a tilted wall it rolls down along it, resting on it
+    ramp = world_of(make(candies=[{"pos": (150, 200)}], walls=[{"a": (60, 300), "b": (420, 420)}]))
+    ramp.advance(100)
+    c = ramp.candies[0]
+    on_line = 300 + (c.x - 60) * 120 / 360  # the wall's y under the candy
+    assert c.x > 170 and c.vx > 0 and on_line - c.y == pytest.approx((C.CANDY_RADIUS + C.WALL_RADIUS) / math.cos(
+        math.atan2(120, 360)), abs=1.5)
+
+
+def test_the_candy_touching_om_noms_drawn_disc_is_eaten():
+    reach = C.OMNOM_RADIUS + C.CANDY_RADIUS
+    for gap, won in ((-1.0, True), (2.0, False)):  # the candy's edge just over / just short of his disc
+        w = world_of(make(candies=[{"pos": (240, 300)}], pins=[{"pos": (240 - 300, 300 - 400)}],
+                          om_nom=(240 + reach + gap, 300)))
+        w.advance(1)
+        assert (w.status == "won") is won
+    # the case: centres 35.7 px apart, the candy covering his mouth, is a win
+    w = world_of(make(candies=[{"pos": (240, 300)}], om_nom=(240, 300 + 35.7 + 40)))
+    w.advance(100)
+    assert w.status == "won" and math.dist((w.candies[0].x, w.candies[0].y), (240, 375.7)) >= 35.7
 
 
 # -- the rules of an attempt -----------------------------------------------------------------------------

@@ -36,10 +36,16 @@ CANDY_MASS = 1.0
 HALF_RADIUS = 18.0  # each of the two candy halves of box 5
 HALF_MASS = 0.5  # two halves make one candy; momentum is conserved when they join
 OFFSCREEN_MARGIN = 60.0  # the candy is lost once its centre is this far outside the screen
+CANDY_ELASTICITY = 0.3  # bounce off a wall: the normal speed after / before (pymunk multiplies it by the wall's 1.0)
+CANDY_FRICTION = 0.6  # friction on a wall: the candy (a solid disc) rolls down slopes rather than sliding
 
-# -- Om Nom and stars -----------------------------------------------------------------------
-MOUTH_RADIUS = 30.0  # won when the (whole) candy's centre comes this close to Om Nom's mouth
-OMNOM_RADIUS = 40.0  # drawn body (the body itself does not collide)
+# -- Om Nom, stars and walls ----------------------------------------------------------------
+# Om Nom is drawn as a green disc with his mouth open in its middle; he eats the whole candy
+# the moment it touches that disc, from any side (catch zone = what is drawn; the web game
+# opens his mouth as the candy comes near and eats what overlaps it). A candy half touching
+# him is lost: he eats it, and the level needs the whole candy.
+OMNOM_RADIUS = 36.0  # his drawn disc and catch zone (1.5 x the candy's radius)
+WALL_RADIUS = 6.0  # a wall (block) is a segment this thick on each side; the candy bounces off and rolls on it
 STAR_RADIUS = 20.0  # a star is collected when the candy's edge touches its circle
 
 # -- ropes, pins, active pins, spiders ------------------------------------------------------

@@ -223,9 +223,10 @@ def describe(world: World, actions_taken: int) -> str:
         bubble = f"; inside bubble B{carried[i]}" if i in carried else ""
         lines.append(f"{name}: at {_xy((c.x, c.y))}, velocity {_xy((c.vx, c.vy))} px/s; {held}{bubble}.")
     whole = [c for _, c in candies if not c.half]
-    mouth = f"Om Nom's mouth: {_xy(level.om_nom)}"
+    mouth = f"Om Nom: centre {_xy(level.om_nom)}, radius {C.OMNOM_RADIUS:g} px"
     if whole:
-        mouth += f", {math.dist(level.om_nom, (whole[0].x, whole[0].y)):.0f} px from the candy"
+        gap = math.dist(level.om_nom, (whole[0].x, whole[0].y)) - C.OMNOM_RADIUS - whole[0].radius
+        mouth += f"; the candy's edge is {gap:.0f} px from his"
     if level.halves and not whole:
         mouth += " (he eats only a whole candy: join the two halves first)"
     lines.append(mouth + ".")
@@ -258,6 +259,8 @@ def describe(world: World, actions_taken: int) -> str:
         lines.append("Magic hats: " + "; ".join(
             f"pair H{k}: opening at {_xy(p.hats[0].pos)} facing {compass(p.hats[0].angle)} and at "
             f"{_xy(p.hats[1].pos)} facing {compass(p.hats[1].angle)}" for k, p in enumerate(level.hats, 1)) + ".")
+    if level.walls:
+        lines.append("Walls: " + "; ".join(f"from {_xy(w.a)} to {_xy(w.b)}" for w in level.walls) + ".")
     if level.spikes:
         lines.append("Spikes: " + "; ".join(f"from {_xy(s.a)} to {_xy(s.b)}" for s in level.spikes) + ".")
     if level.electrics:

@@ -87,6 +87,11 @@ class SpikeSpec(_Model):
     b: Point
 
 
+class WallSpec(_Model):
+    a: Point
+    b: Point
+
+
 class ElectricSpec(_Model):
     a: Point
     b: Point
@@ -122,8 +127,9 @@ class Level(_Model):
     hats: list[HatPairSpec] = Field(default_factory=list, max_length=4)
     spikes: list[SpikeSpec] = Field(default_factory=list, max_length=20)
     electrics: list[ElectricSpec] = Field(default_factory=list, max_length=9)
+    walls: list[WallSpec] = Field(default_factory=list, max_length=12)
     stars: list[Point] = Field(min_length=3, max_length=3)
-    om_nom: Point  # Om Nom's mouth
+    om_nom: Point  # the centre of Om Nom (his mouth)
     solution: Solution | None = None
     design: DesignInfo | None = None
 

@@ -19,8 +19,9 @@ pixels (px), x to the right and y DOWNWARD from the top-left corner. Gravity pul
 the screen.
 - Candy: the red disc with white stripes. In some levels there are two smaller pink candy halves
   instead: they join into one candy when they touch, and Om Nom eats only a whole candy.
-- Om Nom: the round green creature with his mouth open in the middle. The level is won the
-  moment the candy's centre comes within {C.MOUTH_RADIUS:g} px of his centre, from any side.
+- Om Nom: the round green creature with his mouth open in the middle (a disc of radius
+  {C.OMNOM_RADIUS:g} px). The level is won the moment the candy touches him, from any side. A candy
+  half that touches him is lost.
 - Ropes: lines from a pin to the candy. A rope pulls only when stretched beyond its length:
   slack (drawn sagging) it pulls nothing; taut it holds the candy like a pendulum (it swings)
   and gives a little, like a stiff elastic; jerked taut it bounces the candy back. A rope
@@ -43,6 +44,7 @@ the screen.
   share the colour and the label): the candy moving into the opening of one hat comes out of
   the other hat's opening, moving in the direction that hat faces, at the same speed. The
   ropes holding it snap.
+- Walls (thick brown bars): the candy bounces off them and rolls along them.
 - Spikes (dark gray teeth) and live electric barriers (yellow zigzag; gray dashed when off,
   white labels E1, ...; the text says when they switch) destroy the candy that touches them.
 - Spiders (black, on a rope) crawl from the pin down the rope toward the candy at {C.SPIDER_SPEED:g} px/s;

@@ -2,7 +2,9 @@
 
 Legend (the prompt repeats it):
 - candy: red disc with white stripes (box 5: two smaller pink halves);
-- Om Nom: the round green creature with an open mouth (dark red) in his middle;
+- Om Nom: the round green creature with an open mouth (dark red) in his middle; the whole
+  green disc is where he catches the candy;
+- walls: thick brown bars with a light edge;
 - ropes: brown lines from a pin to the candy, redder the more they are stretched (fully red
   at ROPE_RED_STRETCH px); a slack rope sags;
 - pins: dark gray dots labelled P1, P2, ...;
@@ -45,6 +47,8 @@ STAR_EDGE = (185, 120, 0)
 OMNOM = (90, 185, 60)
 MOUTH = (120, 20, 30)
 SPIKE = (75, 75, 85)
+WALL = (120, 85, 50)
+WALL_EDGE = (200, 170, 120)
 ELECTRIC = (250, 230, 40)
 SPIDER = (25, 25, 25)
 TRAIL = (200, 40, 200)
@@ -69,6 +73,8 @@ def render(world: World, *, labels: bool = True, trail: bool = False, banner: st
         todo.append((f"E{k + 1}", ((e.a[0] + e.b[0]) / 2, (e.a[1] + e.b[1]) / 2), 14, False))
     for s in level.spikes:
         _spikes(img, s.a, s.b)
+    for w in level.walls:
+        _wall(img, w.a, w.b)
     for k, a in enumerate(world.active_pins):
         live = a.state in ("armed", "attached")
         if a.state == "armed":
@@ -204,20 +210,29 @@ def _star(img, p) -> None:
     cv2.polylines(img, [poly], True, STAR_EDGE, 1, cv2.LINE_AA)
 
 
-def _om_nom(img, mouth) -> None:
-    """A round green creature centred on his mouth, eyes above it."""
-    mx, my = mouth
-    cv2.circle(img, _pt(mouth), int(C.OMNOM_RADIUS), OMNOM, -1, cv2.LINE_AA)
-    cv2.circle(img, _pt(mouth), int(C.OMNOM_RADIUS), (40, 110, 30), 2, cv2.LINE_AA)
+def _om_nom(img, centre) -> None:
+    """A round green creature (his disc is his catch zone), eyes above a wide open mouth."""
+    mx, my = centre
+    r = C.OMNOM_RADIUS
+    cv2.circle(img, _pt(centre), int(r), OMNOM, -1, cv2.LINE_AA)
+    cv2.circle(img, _pt(centre), int(r), (40, 110, 30), 2, cv2.LINE_AA)
     for side in (-1, 1):
-        eye = (mx + side * 15, my - 24)
-        cv2.circle(img, _pt(eye), 8, WHITE, -1, cv2.LINE_AA)
-        cv2.circle(img, _pt(eye), 8, (40, 110, 30), 1, cv2.LINE_AA)
-        cv2.circle(img, _pt((eye[0], eye[1] + 2)), 4, BLACK, -1, cv2.LINE_AA)
-    cv2.ellipse(img, _pt((mx, my + 6)), (24, 17), 0, 0, 360, MOUTH, -1, cv2.LINE_AA)
-    cv2.ellipse(img, _pt((mx, my + 14)), (13, 6), 0, 0, 360, (220, 80, 90), -1, cv2.LINE_AA)
+        eye = (mx + side * 0.38 * r, my - 0.58 * r)
+        cv2.circle(img, _pt(eye), int(0.2 * r), WHITE, -1, cv2.LINE_AA)
+        cv2.circle(img, _pt(eye), int(0.2 * r), (40, 110, 30), 1, cv2.LINE_AA)
+        cv2.circle(img, _pt((eye[0], eye[1] + 2)), int(0.1 * r), BLACK, -1, cv2.LINE_AA)
+    cv2.ellipse(img, _pt((mx, my + 0.15 * r)), (int(0.62 * r), int(0.45 * r)), 0, 0, 360, MOUTH, -1, cv2.LINE_AA)
+    cv2.ellipse(img, _pt((mx, my + 0.38 * r)), (int(0.33 * r), int(0.15 * r)), 0, 0, 360, (220, 80, 90), -1,
+                cv2.LINE_AA)
     for side in (-1, 1):  # teeth
-        cv2.rectangle(img, _pt((mx + side * 8 - 3, my - 10)), _pt((mx + side * 8 + 3, my - 4)), WHITE, -1)
+        cv2.rectangle(img, _pt((mx + side * 0.2 * r - 3, my - 0.28 * r)), _pt((mx + side * 0.2 * r + 3, my - 0.12 * r)),
+                      WHITE, -1)
+
+
+def _wall(img, a, b) -> None:
+    thickness = int(2 * C.WALL_RADIUS)
+    cv2.line(img, _pt(a), _pt(b), WALL, thickness, cv2.LINE_AA)
+    cv2.line(img, _pt(a), _pt(b), WALL_EDGE, 2, cv2.LINE_AA)
 
 
 def _spikes(img, a, b) -> None:

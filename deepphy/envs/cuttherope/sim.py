@@ -8,7 +8,8 @@ original would (the oracle's search relies on it), and nothing depends on a pymu
 living across decisions (the project's determinism rule: never copy a space).
 
 Dynamics (constants.py has every number):
-- a candy is a pymunk body (no shape: nothing collides with it) under gravity;
+- a candy is a pymunk body with a circle shape under gravity; it bounces off and rolls on
+  walls (static segments); candies do not collide with each other (two halves join);
 - a rope is an elastic segment from its pin to the candy centre: it pulls nothing while
   slack (shorter than its rest length) and pulls like a stiff damped spring once stretched
   beyond it, so it swings the candy, gives and bounces back when jerked taut, and a rope that
@@ -27,7 +28,8 @@ Dynamics (constants.py has every number):
 - an active pin attaches a new rope (length = the distance at that moment) when a candy
   centre enters its circle;
 - two halves join into one candy when they touch (momentum conserved, ropes and bubbles
-  kept); Om Nom eats only a whole candy.
+  kept); Om Nom eats a whole candy the moment it touches his drawn disc; a half that touches
+  him is lost.
 Contacts are checked along each step's path (segment distances), so fast candies do not
 tunnel through stars, hazards or the mouth.
 """
@@ -68,6 +70,7 @@ class Candy:
     y: float
     vx: float = 0.0
     vy: float = 0.0
+    spin: float = 0.0  # angular velocity (rad/s): it rolls on walls
     half: bool = False
     alive: bool = True  # False once eaten, destroyed, lost, or joined into a whole candy
 
@@ -137,7 +140,7 @@ class World:
     reason: str = ""  # how it was won or lost, in words
     events: list[Event] = field(default_factory=list)  # what happened, for the feedback
     trail: list[tuple[float, float]] = field(default_factory=list)  # candy positions during the last advance
-    min_mouth_distance: float = math.inf  # closest a whole candy came to the mouth (the oracle's guide)
+    min_mouth_distance: float = math.inf  # closest a whole candy's centre came to Om Nom's (the oracle's guide)
     min_join_gap: float = math.inf  # closest the two halves came, edge to edge (the oracle's guide)
 
     @classmethod
@@ -284,6 +287,7 @@ class World:
                 c = self.candies[i]
                 c.x, c.y = body.position
                 c.vx, c.vy = body.velocity
+                c.spin = body.angular_velocity
             changed = self._rules(before)
             if self.step_count % C.TRAIL_EVERY == 0 or self.decided:
                 self.trail += [(self.candies[i].x, self.candies[i].y) for i in bodies]  # alive at the step's start
@@ -301,6 +305,10 @@ class World:
         space = pymunk.Space()
         space.gravity = (0.0, C.GRAVITY)
         space.iterations = C.SOLVER_ITERATIONS
+        for wall in self.level.walls:
+            shape = pymunk.Segment(space.static_body, wall.a, wall.b, C.WALL_RADIUS)
+            shape.elasticity, shape.friction = 1.0, 1.0
+            space.add(shape)
         bodies: dict[int, pymunk.Body] = {}
         for i, c in enumerate(self.candies):
             if c.alive:
@@ -320,10 +328,12 @@ class World:
         for i in list(bodies):
             c = self.candies[i]
             if not c.alive:
-                space.remove(bodies.pop(i))
+                body = bodies.pop(i)
+                space.remove(body, *body.shapes)
             else:  # a teleport may have moved it
                 bodies[i].position = (c.x, c.y)
                 bodies[i].velocity = (c.vx, c.vy)
+                bodies[i].angular_velocity = c.spin
         for i, c in enumerate(self.candies):
             if c.alive and i not in bodies:
                 bodies[i] = _add_body(space, c)
@@ -450,14 +460,18 @@ class World:
                 changed = True
 
         for i, c in enumerate(self.candies):  # Om Nom
-            if c.alive and not c.half:
+            if c.alive:
                 p = paths.get(i, ((c.x, c.y), (c.x, c.y)))[0]
                 d = _point_segment_distance(level.om_nom, p, (c.x, c.y))
-                self.min_mouth_distance = min(self.min_mouth_distance, d)
-                if d < C.MOUTH_RADIUS:
+                if not c.half:
+                    self.min_mouth_distance = min(self.min_mouth_distance, d)
+                if d < C.OMNOM_RADIUS + c.radius:
                     c.alive = False
-                    self.status, self.reason = "won", "Om Nom ate the candy"
-                    self._event(self.reason)
+                    if c.half:
+                        self._lose("Om Nom ate a candy half: he needs the whole candy")
+                    else:
+                        self.status, self.reason = "won", "Om Nom ate the candy"
+                        self._event(self.reason)
                     return True
         return changed
 
@@ -497,12 +511,19 @@ class World:
                 b.x, b.y = c.x, c.y
 
 
+CANDIES = pymunk.ShapeFilter(group=1)  # candies do not collide with each other
+
+
 def _add_body(space: pymunk.Space, candy: Candy) -> pymunk.Body:
-    """A candy's body: its mass, no rotation (ropes pull at its centre), no shape."""
-    body = pymunk.Body(candy.mass, math.inf)
+    """A candy's body: a solid disc of its mass (ropes pull at its centre; it rolls on
+    walls), whose circle collides with walls."""
+    body = pymunk.Body(candy.mass, pymunk.moment_for_circle(candy.mass, 0.0, candy.radius))
     body.position = (candy.x, candy.y)
     body.velocity = (candy.vx, candy.vy)
-    space.add(body)
+    body.angular_velocity = candy.spin
+    shape = pymunk.Circle(body, candy.radius)
+    shape.elasticity, shape.friction, shape.filter = C.CANDY_ELASTICITY, C.CANDY_FRICTION, CANDIES
+    space.add(body, shape)
     return body
 
 
