@@ -338,8 +338,10 @@ HANGING = dict(candies=[{"pos": (240, 300)}], pins=[{"pos": (240, 150)}], om_nom
 
 def test_winning_reports_the_stars_touched():
     env, obs = env_of(make(**HANGING))
-    result = env.step(obs.action_space.parse("cut_pin(1)"))
-    assert result.terminated and result.success and not result.truncated
+    first = env.step(obs.action_space.parse("cut_pin(1)"))
+    assert not first.done and env.world.time == pytest.approx(C.ACTION_INTERVAL)
+    result = env.step(first.observation.action_space.parse("sleep(2)"))
+    assert result.terminated and result.success and not result.truncated and env.world.time < 2.25
     assert result.stars == 2 and "LEVEL WON" in result.feedback and len(result.key_frames) == 1
 
 
@@ -354,15 +356,34 @@ def test_success_lets_a_falling_candy_arrive():
     far = dict(HANGING, candies=[{"pos": (240, 120)}], pins=[{"pos": (240, 50)}], om_nom=(240, 690))
     env, obs = env_of(make(**far))
     first = env.step(obs.action_space.parse("cut_pin(1)"))
-    assert not first.done  # 1 s is not enough to fall 400 px ...
+    assert not first.done  # the action's interval is not enough to fall 400 px ...
     result = env.step(first.observation.action_space.parse("success()"))
     assert result.success and result.terminated  # ... the run-on after success() is
 
 
-def test_fail_gives_up_at_once():
+def test_fail_stops_acting_and_the_world_runs_on_to_decide():
     env, obs = env_of(make(**HANGING))
-    result = env.step(obs.action_space.parse("fail()"))
-    assert result.terminated and not result.success and env.world.time == 0
+    result = env.step(obs.action_space.parse("fail()"))  # the candy still hangs: lost
+    assert result.terminated and not result.success and env.world.time == pytest.approx(C.RUN_ON_CAP)
+    env, obs = env_of(make(**HANGING))
+    obs = env.step(obs.action_space.parse("cut_pin(1)")).observation
+    result = env.step(obs.action_space.parse("fail()"))  # the candy on its way still wins
+    assert result.terminated and result.success and result.stars == 2
+
+
+def test_ropes_cut_in_one_action_release_together():
+    # A candy held by two ropes at 45 degrees: cut together it falls straight down; cut one
+    # after the other it swings first.
+    level = make(candies=[{"pos": (240, 300)}], pins=[{"pos": (140, 200)}, {"pos": (340, 200)}])
+    env, obs = env_of(level)
+    env.step(obs.action_space.parse("cut_pin(1, 2)"))
+    c = env.world.candies[0]
+    assert env.world.ropes == [] and c.vx == pytest.approx(0.0, abs=1e-9) and c.y > 300
+    env, obs = env_of(level)
+    obs = env.step(obs.action_space.parse("cut_pin(1)")).observation
+    assert abs(env.world.candies[0].vx) > 50  # it swings on P2 ...
+    env.step(obs.action_space.parse("cut_pin(2)"))
+    assert abs(env.world.candies[0].vx) > 50  # ... and flies off sideways
 
 
 def test_the_tenth_action_runs_on_and_truncates_when_undecided():
@@ -409,7 +430,7 @@ def test_used_elements_leave_the_space_and_an_invalid_step_ends_the_attempt():
     assert obs.action_space.pins == [2]
     with pytest.raises(InvalidAction, match="already cut"):
         obs.action_space.parse("cut_pin(1)")
-    result = env.step(CutAction(name="cut_pin", id=1))  # built in code, bypassing the parser
+    result = env.step(CutAction(name="cut_pin", ids=(1,)))  # built in code, bypassing the parser
     assert result.terminated and not result.success and result.invalid_reason
 
 
@@ -420,20 +441,23 @@ SPACE = CutSpace(num_pins=3, num_active_pins=2, num_bubbles=2, num_cushions=2, p
 
 
 @pytest.mark.parametrize("text, expected", [
-    ("cut_pin(1)", CutAction(name="cut_pin", id=1)),
-    ("[cut_pin(3)]", CutAction(name="cut_pin", id=3)),
-    ("I will cut the rope: cut_pin(P3).", CutAction(name="cut_pin", id=3)),
-    ("```python\ncut_pin(id=1)\n```", CutAction(name="cut_pin", id=1)),
-    ("CUT_PIN( id = \"P1\" )", CutAction(name="cut_pin", id=1)),
-    ("cut pin(1)", CutAction(name="cut_pin", id=1)),
-    ("cut_active_pin(A2)", CutAction(name="cut_active_pin", id=2)),
-    ("pop_bubble(2)", CutAction(name="pop_bubble", id=2)),
-    ("popBubble(B2)", CutAction(name="pop_bubble", id=2)),
-    ("tap_air_cushion(1, times=3)", CutAction(name="tap_air_cushion", id=1, times=3)),
-    ("tap_air_cushion(2, 5)", CutAction(name="tap_air_cushion", id=2, times=5)),
-    ("tap_air_cushion(id=2, times=1)", CutAction(name="tap_air_cushion", id=2, times=1)),
-    ("tap_air_cushion(times=3, id='C2')", CutAction(name="tap_air_cushion", id=2, times=3)),
-    ("tap_air_cushion(C1)", CutAction(name="tap_air_cushion", id=1, times=1)),
+    ("cut_pin(1)", CutAction(name="cut_pin", ids=(1,))),
+    ("[cut_pin(3)]", CutAction(name="cut_pin", ids=(3,))),
+    ("I will cut the rope: cut_pin(P3).", CutAction(name="cut_pin", ids=(3,))),
+    ("```python\ncut_pin(id=1)\n```", CutAction(name="cut_pin", ids=(1,))),
+    ("CUT_PIN( id = \"P1\" )", CutAction(name="cut_pin", ids=(1,))),
+    ("cut pin(1)", CutAction(name="cut_pin", ids=(1,))),
+    ("cut_active_pin(A2)", CutAction(name="cut_active_pin", ids=(2,))),
+    ("cut_pin(3, 1)", CutAction(name="cut_pin", ids=(1, 3))),  # one swipe through two ropes
+    ("cut_pin(P1, P3)", CutAction(name="cut_pin", ids=(1, 3))),
+    ("cut_active_pin(2, 1)", CutAction(name="cut_active_pin", ids=(1, 2))),
+    ("pop_bubble(2)", CutAction(name="pop_bubble", ids=(2,))),
+    ("popBubble(B2)", CutAction(name="pop_bubble", ids=(2,))),
+    ("tap_air_cushion(1, times=3)", CutAction(name="tap_air_cushion", ids=(1,), times=3)),
+    ("tap_air_cushion(2, 5)", CutAction(name="tap_air_cushion", ids=(2,), times=5)),
+    ("tap_air_cushion(id=2, times=1)", CutAction(name="tap_air_cushion", ids=(2,), times=1)),
+    ("tap_air_cushion(times=3, id='C2')", CutAction(name="tap_air_cushion", ids=(2,), times=3)),
+    ("tap_air_cushion(C1)", CutAction(name="tap_air_cushion", ids=(1,), times=1)),
     ("sleep(1.5)", CutAction(name="sleep", seconds=1.5)),
     ("sleep(seconds=0.25)", CutAction(name="sleep", seconds=0.25)),
     ("sleep(2s)", CutAction(name="sleep", seconds=2.0)),
@@ -441,7 +465,7 @@ SPACE = CutSpace(num_pins=3, num_active_pins=2, num_bubbles=2, num_cushions=2, p
     ("wait(10)", CutAction(name="sleep", seconds=10.0)),
     ("success()", CutAction(name="success")),
     ("Prediction: it falls. Action: fail()", CutAction(name="fail")),
-    ("First cut_pin(1), no wait, better: pop_bubble(2)", CutAction(name="pop_bubble", id=2)),  # the last counts
+    ("First cut_pin(1), no wait, better: pop_bubble(2)", CutAction(name="pop_bubble", ids=(2,))),  # the last counts
 ])
 def test_parse_accepts_the_syntax_robustly(text, expected):
     assert SPACE.parse(text) == expected
@@ -454,8 +478,11 @@ def test_parse_accepts_the_syntax_robustly(text, expected):
     ("cut_pin(4)", "no pin P4"),
     ("cut_pin(0)", "no pin P0"),
     ("cut_pin(B1)", "is a bubble, not a pin"),
-    ("cut_pin(1, 2)", "exactly one argument"),
-    ("cut_pin()", "exactly one argument"),
+    ("cut_pin(1, 2)", "already cut"),
+    ("cut_pin(1, 1)", "named twice"),
+    ("cut_pin()", "one or more ids"),
+    ("cut_pin(1, x=3)", "one or more ids"),
+    ("pop_bubble(1, 2)", "exactly one argument"),
     ("cut_pin(x)", "not an id"),
     ("pop_bubble(1)", "already popped"),
     ("tap_air_cushion(3)", "no air cushion C3"),
@@ -496,7 +523,7 @@ def test_parse_is_total_and_fast_on_adversarial_text(text):
 def test_format_round_trips_and_sample_is_uniform_over_the_valid_actions():
     rng = np.random.default_rng(0)
     valid = SPACE.valid_actions()
-    assert len(valid) == 2 + 2 + 1 + 2 * 3 + len(C.SAMPLE_SLEEPS) + 2
+    assert len(valid) == 2 + 2 + 2 + 1 + 2 * 3 + len(C.SAMPLE_SLEEPS) + 2  # single cuts, pairs, bubble, taps
     counts = Counter(SPACE.format(SPACE.sample(rng)) for _ in range(6000))
     assert set(counts) == {SPACE.format(a) for a in valid}
     assert max(counts.values()) / min(counts.values()) < 1.5

@@ -17,17 +17,22 @@ WIDTH = 480  # world width = image width (units = pixels)
 HEIGHT = 720  # world height = image height
 DT = 0.01  # physics step (s); every time in the game is a whole number of steps
 STEPS_PER_SECOND = 100  # = 1 / DT, as an exact integer
-SOLVER_ITERATIONS = 30  # pymunk constraint iterations per step (ropes stay taut without jitter)
+SOLVER_ITERATIONS = 10  # pymunk's solver iterations per step (pymunk's default; only wall contacts use them)
 GRAVITY = 825.0  # downward acceleration (units/s^2): ~550 map units/s^2 of the web game x 1.5
 
 # -- decisions ------------------------------------------------------------------------------
 MAX_ACTIONS = 10  # decisions per attempt (EnvSpec.max_steps)
-ACTION_INTERVAL = 1.0  # s the world runs after every action except sleep/success/fail, so its consequence shows
+# The world runs ACTION_INTERVAL after every action but sleep/success/fail: about a player's
+# visual reaction time (the quickest a player can act again on what an action did), shorter
+# than every window our levels ask for (>= 0.3 s), and long enough that the action's first
+# consequence shows (a candy let go falls ~26 px). Ropes that must go at the same moment are
+# cut by one action naming them all (the game's long swipe), not by two quick actions.
+ACTION_INTERVAL = 0.25
 SLEEP_MIN = 0.1  # sleep(seconds): the world runs exactly `seconds` (no extra interval) ...
 SLEEP_MAX = 10.0  # ... within [SLEEP_MIN, SLEEP_MAX] ...
 SLEEP_DECIMALS = 2  # ... written with at most 2 decimals (whole physics steps)
 TAP_TIMES = (1, 3, 5)  # tap_air_cushion(id, times): the allowed numbers of puffs
-RUN_ON_CAP = 10.0  # s the world runs on after success(), or after the last action, to decide the outcome
+RUN_ON_CAP = 10.0  # s the world runs on after success(), fail() or the last action, to decide the outcome
 SAMPLE_SLEEPS = (0.5, 1.0, 2.0)  # the sleeps ActionSpace.sample() draws from (uniform over a finite set)
 
 # -- the candy ------------------------------------------------------------------------------

@@ -4,9 +4,10 @@ An attempt: the model sees the screenshot and the text state, chooses one action
 world, paused while it thinks, applies the action and then runs ACTION_INTERVAL seconds
 (sleep(s) runs s seconds instead), and the model sees the result. The game decides the
 outcome: won when Om Nom eats the candy, lost when the candy leaves the screen, touches a
-hazard or a spider reaches it. success() and the 10th action end the decisions: the world
+hazard or a spider reaches it. success(), fail() and the 10th action end the decisions: the world
 then runs on for up to RUN_ON_CAP seconds to decide (undecided after success(): a false
-claim, scored as a loss; undecided after the 10th action: truncated). fail() gives up.
+claim, scored as a loss; undecided after the 10th action: truncated). fail() stops acting
+too: the world runs on and the game decides (a candy already on its way still wins).
 Stars = stars the candy touched, when the level is won (0 otherwise).
 """
 
@@ -20,7 +21,7 @@ from deepphy.envs.cuttherope import constants as C
 from deepphy.envs.cuttherope.level import BOX_THEMES, Level, level_ids, load_level
 from deepphy.envs.cuttherope.render import render
 from deepphy.envs.cuttherope.sim import World, seconds_to_steps
-from deepphy.envs.cuttherope.space import CutAction, CutSpace
+from deepphy.envs.cuttherope.space import MULTI_CUTS, CutAction, CutSpace
 from deepphy.envs.images import Image
 
 
@@ -67,8 +68,8 @@ class CutTheRopeEnv(Environment):
             return StepResult(terminated=True, invalid_reason=problem, feedback=f"invalid action: {problem}",
                               stars=0, info=self._info())
         self.actions += 1
-        if action.name == "tap_air_cushion" and action.id not in self.tapped:
-            self.tapped.append(action.id)
+        if action.name == "tap_air_cushion" and action.ids[0] not in self.tapped:
+            self.tapped.append(action.ids[0])
         words = act(world, action)
         feedback = [f"{format_action(action)}: {words}", *_event_words(world)]
         truncated = False
@@ -146,8 +147,10 @@ def invalid_reason(world: World, action: CutAction) -> str | None:
     avail = world.available()
     field = {"cut_pin": "pins", "cut_active_pin": "active_pins", "pop_bubble": "bubbles",
              "tap_air_cushion": "cushions"}.get(action.name)
-    if field and action.id not in avail[field]:
+    if field and (not action.ids or any(i not in avail[field] for i in action.ids)):
         return f"{format_action(action)}: no such element can be used now"
+    if len(set(action.ids)) != len(action.ids) or (len(action.ids) > 1 and action.name not in MULTI_CUTS):
+        return f"{format_action(action)}: only cuts may name several elements, each once"
     if action.name == "tap_air_cushion" and action.times not in C.TAP_TIMES:
         return f"times must be one of {C.TAP_TIMES}"
     if action.name == "sleep" and not (action.seconds is not None and C.SLEEP_MIN <= action.seconds <= C.SLEEP_MAX):
@@ -157,27 +160,28 @@ def invalid_reason(world: World, action: CutAction) -> str | None:
 
 def act(world: World, action: CutAction) -> str:
     """The rules of one (valid) action: apply it, then let the world run (ACTION_INTERVAL,
-    the sleep's seconds, or after success() until decided, at most RUN_ON_CAP). Returns what
-    the action did, in words; `world.events` holds what happened while the world ran."""
-    if action.name == "fail":
-        world.status, world.reason, world.events = "lost", "you gave up with fail()", []
-        return "you gave up the level"
-    if action.name == "success":
+    the sleep's seconds, or after success() and fail() until decided, at most RUN_ON_CAP).
+    Returns what the action did, in words; `world.events` holds what happened while the
+    world ran."""
+    if action.name in ("success", "fail"):
         world.run_on(seconds_to_steps(C.RUN_ON_CAP))
         if not world.decided:
             world.status = "lost"
-            world.reason = f"success() was claimed, but Om Nom had not eaten the candy {C.RUN_ON_CAP:g} s later"
-        return f"you declared the level won: the world runs on (at most {C.RUN_ON_CAP:g} s) to decide"
+            world.reason = (f"success() was claimed, but Om Nom had not eaten the candy {C.RUN_ON_CAP:g} s later"
+                            if action.name == "success" else
+                            f"you stopped with fail(), and Om Nom had not eaten the candy {C.RUN_ON_CAP:g} s later")
+        said = "declared the level won" if action.name == "success" else "stopped acting (fail)"
+        return f"you {said}: the world runs on (at most {C.RUN_ON_CAP:g} s) and the game decides"
     if action.name == "sleep":
         words = f"the world runs for {action.seconds:g} s"
     elif action.name == "cut_pin":
-        words = world.cut_pin(action.id)
+        words = "; ".join(world.cut_pin(i) for i in action.ids)
     elif action.name == "cut_active_pin":
-        words = world.cut_active_pin(action.id)
+        words = "; ".join(world.cut_active_pin(i) for i in action.ids)
     elif action.name == "pop_bubble":
-        words = world.pop_bubble(action.id)
+        words = world.pop_bubble(action.ids[0])
     else:
-        words = world.tap_air_cushion(action.id, action.times)
+        words = world.tap_air_cushion(action.ids[0], action.times)
     world.advance(seconds_to_steps(action.seconds if action.name == "sleep" else C.ACTION_INTERVAL))
     return words
 

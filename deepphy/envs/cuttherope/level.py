@@ -45,10 +45,20 @@ class _Model(BaseModel):
 
 class CandySpec(_Model):
     pos: Point
+    velocity: tuple[float, float] = (0.0, 0.0)  # px/s at t = 0: at rest unless the level's idea says otherwise
 
 
 class SpiderSpec(_Model):
     delay: float = Field(0.0, ge=0, le=60)  # s after the level starts before it crawls
+
+
+class TrackSpec(_Model):
+    """A hook on a track: the pin slides back and forth between its `pos` and `to` by itself,
+    a smooth (sinusoidal) motion, one round trip every `period` seconds."""
+
+    to: Point
+    period: float = Field(gt=0.5, le=30)
+    phase: float = Field(0.0, ge=0, lt=1)  # share of a round trip done at t = 0 (0: at `pos`, 0.5: at `to`)
 
 
 class PinSpec(_Model):
@@ -57,6 +67,24 @@ class PinSpec(_Model):
     length: float | None = Field(None, gt=0, le=2000)  # rest length; None = the initial pin-candy distance;
     #                                                    shorter than that distance: a stretched rope
     spider: SpiderSpec | None = None  # a spider starting at this pin, crawling down the rope
+    track: TrackSpec | None = None  # a moving hook: the pin slides along this track
+
+    def at(self, t: float) -> tuple[float, float]:
+        """Where the pin is at time t (s): its `pos`, or on its track."""
+        if self.track is None:
+            return self.pos
+        f = (1.0 - math.cos(2.0 * math.pi * (t / self.track.period + self.track.phase))) / 2.0
+        (x0, y0), (x1, y1) = self.pos, self.track.to
+        return x0 + (x1 - x0) * f, y0 + (y1 - y0) * f
+
+    def velocity(self, t: float) -> tuple[float, float]:
+        """The pin's velocity at time t (px/s)."""
+        if self.track is None:
+            return 0.0, 0.0
+        w = 2.0 * math.pi / self.track.period
+        df = w * math.sin(2.0 * math.pi * (t / self.track.period + self.track.phase)) / 2.0
+        (x0, y0), (x1, y1) = self.pos, self.track.to
+        return (x1 - x0) * df, (y1 - y0) * df
 
 
 class ActivePinSpec(_Model):
@@ -119,6 +147,7 @@ class DesignInfo(_Model):
 class Level(_Model):
     id: str = Field(pattern=r"^b[1-5]_l[0-9]{2}$")
     title: str = ""
+    idea: str = ""  # what the level teaches or tests, in a sentence
     candies: list[CandySpec] = Field(min_length=1, max_length=2)  # one candy, or two halves
     pins: list[PinSpec] = Field(default_factory=list, max_length=9)
     active_pins: list[ActivePinSpec] = Field(default_factory=list, max_length=9)
@@ -146,7 +175,7 @@ class Level(_Model):
         for i, pin in enumerate(self.pins, 1):
             if pin.candy >= len(self.candies):
                 raise ValueError(f"pin {i} holds candy {pin.candy}, but the level has {len(self.candies)}")
-            d = math.dist(pin.pos, self.candies[pin.candy].pos)
+            d = math.dist(pin.at(0.0), self.candies[pin.candy].pos)
             if pin.length is not None and pin.length < MIN_STRETCHED * d:
                 raise ValueError(f"pin {i}: rope length {pin.length} is less than {MIN_STRETCHED:g} x the distance "
                                  f"{d:.1f} to its candy")
@@ -159,7 +188,7 @@ class Level(_Model):
     def rope_length(self, pin: int) -> float:
         """Length of pin `pin`'s rope (0-based index)."""
         spec = self.pins[pin]
-        return spec.length if spec.length is not None else math.dist(spec.pos, self.candies[spec.candy].pos)
+        return spec.length if spec.length is not None else math.dist(spec.at(0.0), self.candies[spec.candy].pos)
 
 
 def level_path(level_id: str) -> Path:

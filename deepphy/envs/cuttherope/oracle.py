@@ -38,11 +38,11 @@ SUCCESS = CutAction(name="success")
 
 
 def moves(world: World) -> list[CutAction]:
+    """Every element action now: each rope cut alone or with another, bubbles, cushion taps."""
     avail = world.available()
-    return ([CutAction(name="cut_pin", id=i) for i in avail["pins"]]
-            + [CutAction(name="cut_active_pin", id=i) for i in avail["active_pins"]]
-            + [CutAction(name="pop_bubble", id=i) for i in avail["bubbles"]]
-            + [CutAction(name="tap_air_cushion", id=i, times=n) for i in avail["cushions"] for n in C.TAP_TIMES])
+    return CutSpace(num_pins=len(world.level.pins), num_active_pins=len(world.level.active_pins),
+                    num_cushions=len(avail["cushions"]), pins=avail["pins"], active_pins=avail["active_pins"],
+                    bubbles=avail["bubbles"]).element_actions()
 
 
 @dataclass
@@ -201,16 +201,16 @@ def reference_win_rate(level: Level, rng: np.random.Generator, episodes: int = 1
         tapped: set[int] = set()
         for _ in range(C.MAX_ACTIONS):
             avail = world.available()
-            choices = ([CutAction(name="cut_pin", id=i) for i in avail["pins"]]
-                       + [CutAction(name="cut_active_pin", id=i) for i in avail["active_pins"]]
-                       + [CutAction(name="pop_bubble", id=i) for i in avail["bubbles"]]
-                       + [CutAction(name="tap_air_cushion", id=i, times=1) for i in avail["cushions"]
+            choices = ([CutAction(name="cut_pin", ids=(i,)) for i in avail["pins"]]
+                       + [CutAction(name="cut_active_pin", ids=(i,)) for i in avail["active_pins"]]
+                       + [CutAction(name="pop_bubble", ids=(i,)) for i in avail["bubbles"]]
+                       + [CutAction(name="tap_air_cushion", ids=(i,), times=1) for i in avail["cushions"]
                           if i not in tapped])
             if not choices:
                 break
             move = choices[int(rng.integers(len(choices)))]
             if move.name == "tap_air_cushion":
-                tapped.add(move.id)
+                tapped.add(move.ids[0])
             act(world, move)
             if world.decided:
                 break

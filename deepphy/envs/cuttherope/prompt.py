@@ -58,21 +58,22 @@ Goal: Om Nom eats the candy. Stars: the stars the candy touched on the way (0 to
 the level is won. Win first; collect stars if you can.
 
 Time: the world is paused while you decide. After each action the world runs for {C.ACTION_INTERVAL:g} s so
-that you see its consequence, then stops again; sleep(seconds) instead runs the world for exactly
-that many seconds. You have at most {C.MAX_ACTIONS} actions. The level ends by itself as soon as it
-is won or lost. After success(), or after your {C.MAX_ACTIONS}th action, the world runs on without you
-for up to {C.RUN_ON_CAP:g} s: the game decides, so calling success() when Om Nom does not get the
-candy counts as a loss.
+that you see its first consequence, then stops again; sleep(seconds) instead runs the world for
+exactly that many seconds. You have at most {C.MAX_ACTIONS} actions. The level ends by itself as soon as
+it is won or lost. After success(), fail(), or your {C.MAX_ACTIONS}th action, the world runs on without
+you for up to {C.RUN_ON_CAP:g} s and the game decides: calling success() when Om Nom does not get the
+candy counts as a loss, and a candy already on its way to him still wins after fail().
 
 Actions (one per reply):
-- cut_pin(id): cut the rope of pin P<id>, e.g. cut_pin(1) for P1.
-- cut_active_pin(id): cut the rope of active pin A<id>; before it has caught the candy this
-  removes the active pin instead.
+- cut_pin(id): cut the rope of pin P<id>, e.g. cut_pin(2) for P2. Several ids cut those ropes
+  at the same moment (one long swipe), e.g. cut_pin(2, 3).
+- cut_active_pin(id): cut the rope of active pin A<id> (several ids: at the same moment);
+  before it has caught the candy this removes the active pin instead.
 - pop_bubble(id): pop bubble B<id> (the candy it carries falls free).
 - tap_air_cushion(id, times=n): n puffs of air cushion C<id>, n one of {times}.
 - sleep(seconds): let the world run for {C.SLEEP_MIN:g} to {C.SLEEP_MAX:g} seconds (two decimals).
 - success(): you are sure the candy will reach Om Nom; stop acting and let it happen.
-- fail(): give up the level.
+- fail(): stop acting; the world runs on and the game decides.
 Use only ids shown on the image that can still be used (the text lists them under "You can
 now"); a rope already cut or a bubble already popped cannot be used again. Anything else
 (unknown id, value out of range, no action) is an invalid action: it ends the level, lost."""

@@ -87,7 +87,7 @@ class Candy:
 class Rope:
     source: str  # "pin" or "active"
     sid: int  # id (1-based) of its pin or active pin
-    ax: float  # anchor (the pin)
+    ax: float  # anchor (the pin) now; a hook on a track moves it
     ay: float
     length: float  # rest length: the rope pulls once the candy is farther than this
     candy: int  # index into World.candies
@@ -147,9 +147,9 @@ class World:
     def from_level(cls, level: Level) -> "World":
         halves = level.halves
         world = cls(level=level)
-        world.candies = [Candy(x=c.pos[0], y=c.pos[1], half=halves) for c in level.candies]
-        world.ropes = [Rope("pin", i, p.pos[0], p.pos[1], level.rope_length(i - 1), p.candy)
-                       for i, p in enumerate(level.pins, 1)]
+        world.candies = [Candy(x=c.pos[0], y=c.pos[1], vx=c.velocity[0], vy=c.velocity[1], half=halves)
+                         for c in level.candies]
+        world.ropes = [Rope("pin", i, *p.at(0.0), level.rope_length(i - 1), p.candy) for i, p in enumerate(level.pins, 1)]
         world.spiders = [Spider(i, p.spider.delay) for i, p in enumerate(level.pins, 1) if p.spider]
         world.bubbles = [Bubble(b.pos[0], b.pos[1]) for b in level.bubbles]
         world.active_pins = [ActivePin(a.pos[0], a.pos[1], a.radius) for a in level.active_pins]
@@ -188,18 +188,22 @@ class World:
     def rope_of_active_pin(self, pin: int) -> Rope | None:
         return next((r for r in self.ropes if r.source == "active" and r.sid == pin), None)
 
+    def hook(self, rope: Rope):
+        """The pin spec of a rope whose pin moves on a track (None for a fixed pin)."""
+        if rope.source == "pin":
+            spec = self.level.pins[rope.sid - 1]
+            if spec.track is not None:
+                return spec
+        return None
+
     def rope_pull(self, rope: Rope) -> tuple[float, float, float]:
         """(tension in force units, unit vector from the pin to the candy): the rope's pull on
         its candy now, a damped spring on the stretch beyond the rest length; 0 when slack (a
         rope never pushes)."""
         c = self.candies[rope.candy]
-        dx, dy = c.x - rope.ax, c.y - rope.ay
-        d = math.hypot(dx, dy)
-        if d <= rope.length or d == 0.0:
-            return 0.0, 0.0, 0.0
-        ux, uy = dx / d, dy / d
-        tension = ROPE_K * (d - rope.length) + ROPE_C * (c.vx * ux + c.vy * uy)
-        return max(tension, 0.0), ux, uy
+        hook = self.hook(rope)
+        avx, avy = hook.velocity(self.time) if hook else (0.0, 0.0)
+        return _pull(c.x - rope.ax, c.y - rope.ay, c.vx - avx, c.vy - avy, rope.length)
 
     def rope_tension(self, rope: Rope) -> float:
         """What the rope pulls now, in weights of a whole candy."""
@@ -295,6 +299,10 @@ class World:
                 break
             if changed:
                 self._sync_space(space, bodies)
+        for rope in self.ropes:
+            hook = self.hook(rope)
+            if hook:
+                rope.ax, rope.ay = hook.at(self.time)
         self.sync_bubbles()
 
     def run_on(self, max_steps: int) -> None:
@@ -320,7 +328,8 @@ class World:
         """Each body's velocity update: gravity (or a bubble's lift) plus its ropes' pull."""
         carried = {b.candy for b in self.bubbles if b.candy is not None and not b.popped}
         for i, body in bodies.items():
-            body.velocity_func = _velocity_update([r for r in self.ropes if r.candy == i], i in carried)
+            ropes = [(r.ax, r.ay, r.length, self.hook(r)) for r in self.ropes if r.candy == i]
+            body.velocity_func = _velocity_update(ropes, i in carried, self)
 
     def _sync_space(self, space: pymunk.Space, bodies: dict[int, pymunk.Body]) -> None:
         """After a rule changed bubbles or candies: make the space match the state
@@ -527,32 +536,43 @@ def _add_body(space: pymunk.Space, candy: Candy) -> pymunk.Body:
     return body
 
 
-def _velocity_update(ropes: list[Rope], buoyant: bool):
+def _velocity_update(ropes: list[tuple], buoyant: bool, world: World):
     """A body's velocity update for pymunk: gravity, or inside a bubble a lift with drag (the
-    velocity relaxes to BUBBLE_RISE_SPEED upward), plus the pull of its ropes. pymunk moves
-    the bodies before it updates their velocities, so the ropes pull from where the body is
-    after this step's move: symplectic Euler, which keeps a swing's energy."""
-    anchors = [(r.ax, r.ay, r.length) for r in ropes]
+    velocity relaxes to BUBBLE_RISE_SPEED upward), plus the pull of its ropes (anchor x, y,
+    rest length, the pin spec of a hook on a track or None). pymunk moves the bodies before
+    it updates their velocities, so the ropes pull from where the body is after this step's
+    move: symplectic Euler, which keeps a swing's energy."""
 
     def update(body: pymunk.Body, gravity, damping: float, dt: float) -> None:
         gx, gy = gravity
         if buoyant:
             gx, gy, damping = 0.0, -C.BUBBLE_DRAG * C.BUBBLE_RISE_SPEED, math.exp(-C.BUBBLE_DRAG * dt)
-        if anchors:
+        if ropes:
             (px, py), (vx, vy) = body.position, body.velocity
+            t = (world.step_count + 1) * C.DT  # the time of the position pymunk just moved the body to
             inv_mass = 1.0 / body.mass
-            for ax, ay, length in anchors:
-                dx, dy = px - ax, py - ay
-                d = math.hypot(dx, dy)
-                if d > length:
-                    ux, uy = dx / d, dy / d
-                    tension = ROPE_K * (d - length) + ROPE_C * (vx * ux + vy * uy)
-                    if tension > 0.0:
-                        gx -= tension * ux * inv_mass
-                        gy -= tension * uy * inv_mass
+            for ax, ay, length, hook in ropes:
+                avx = avy = 0.0
+                if hook is not None:
+                    (ax, ay), (avx, avy) = hook.at(t), hook.velocity(t)
+                tension, ux, uy = _pull(px - ax, py - ay, vx - avx, vy - avy, length)
+                gx -= tension * ux * inv_mass
+                gy -= tension * uy * inv_mass
         pymunk.Body.update_velocity(body, (gx, gy), damping, dt)
 
     return update
+
+
+def _pull(dx: float, dy: float, vx: float, vy: float, length: float) -> tuple[float, float, float]:
+    """A rope's pull on its candy, (tension, unit vector from the pin to the candy), given the
+    candy's offset and velocity relative to the pin: a damped spring on the stretch beyond the
+    rest length, never pushing."""
+    d = math.hypot(dx, dy)
+    if d <= length:
+        return 0.0, 0.0, 0.0
+    ux, uy = dx / d, dy / d
+    tension = ROPE_K * (d - length) + ROPE_C * (vx * ux + vy * uy)
+    return (tension, ux, uy) if tension > 0.0 else (0.0, 0.0, 0.0)
 
 
 def _point_segment_distance(p, a, b) -> float:
