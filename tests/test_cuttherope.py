@@ -20,7 +20,7 @@ import pytest
 
 from deepphy.envs import ActionSpace, InvalidAction, Task, get_spec
 from deepphy.envs.cuttherope import constants as C
-from deepphy.envs.cuttherope.level import BOXES, Level, level_ids, load_level
+from deepphy.envs.cuttherope.level import BOXES, Level, Solution, level_ids, load_level
 from deepphy.envs.cuttherope.space import CutAction, CutSpace
 
 STEP = 1.0 / C.STEPS_PER_SECOND
@@ -76,16 +76,52 @@ def test_package_import_stays_light():
 
 
 def test_every_level_file_validates_and_each_box_has_its_mechanics():
+    # Season 1's order: Cardboard (ropes, bubbles, automatic ropes, stretched ropes, spikes, several
+    # ropes in one cut), Fabric (air cushions, spiders), Foil (hooks on tracks, sparks, walls), Magic
+    # (hats), Valentine (two halves); each box uses earlier mechanics, never a later box's.
     levels = [load_level(i) for i in level_ids()]
     assert len(levels) == sum(BOXES.values()) == 88
     by_box = {b: [lv for lv in levels if lv.box == b] for b in BOXES}
-    assert all(lv.solution is not None and 1 <= len(lv.solution.actions) <= C.MAX_ACTIONS for lv in levels)
-    assert any(lv.bubbles for lv in by_box[1]) and any(lv.spikes for lv in by_box[1])
-    assert not any(lv.cushions or lv.hats or lv.active_pins or lv.halves for lv in by_box[1])
-    assert any(lv.cushions for lv in by_box[2]) and any(p.spider for lv in by_box[2] for p in lv.pins)
-    assert all(lv.active_pins for lv in by_box[3])
-    assert all(lv.hats for lv in by_box[4]) and any(lv.electrics for lv in by_box[4])
-    assert all(lv.halves for lv in by_box[5]) and not any(lv.halves for lv in levels if lv.box < 5)
+    assert all(lv.solution is not None and 1 <= len(lv.solution.actions) <= C.MAX_ACTIONS and lv.idea
+               for lv in levels)
+
+    def stretched(lv):
+        return any(lv.rope_length(k) < math.dist(p.at(0), lv.candies[p.candy].pos) - 1 for k, p in enumerate(lv.pins))
+
+    def first(box, has):
+        return next(n for n, lv in enumerate(by_box[box], 1) if has(lv))
+
+    assert (first(1, lambda lv: lv.bubbles) < first(1, lambda lv: lv.active_pins) < first(1, stretched)
+            < first(1, lambda lv: lv.spikes) < first(1, lambda lv: any("," in a for a in lv.solution.actions)))
+    assert first(2, lambda lv: lv.cushions) < first(2, lambda lv: any(p.spider for p in lv.pins))
+    assert all(any(p.track for p in lv.pins) or lv.electrics or lv.walls for lv in by_box[3])
+    assert all(lv.hats for lv in by_box[4]) and all(lv.halves for lv in by_box[5])
+    later = {1: ("cushions", "hats", "electrics", "walls"), 2: ("hats", "electrics", "walls"), 3: ("hats",)}
+    for box, kinds in later.items():
+        assert not any(getattr(lv, k) for lv in by_box[box] for k in kinds)
+        assert not any(lv.halves or any(p.spider or p.track for p in lv.pins) for lv in by_box[box] if box < 2)
+    assert not any(lv.halves for lv in levels if lv.box < 5)
+
+
+def test_the_level_files_are_the_designs():
+    # design.py is how the levels were made: every file holds its design (and the plan the oracle found).
+    from deepphy.envs.cuttherope.design import LEVELS
+
+    assert [lv.id for lv in LEVELS] == level_ids()
+    for lv in LEVELS:
+        assert load_level(lv.id).model_copy(update={"solution": None}) == lv
+
+
+def test_candies_start_at_rest_and_a_hook_moves_its_rope():
+    from deepphy.envs.cuttherope.calibrate import at_rest
+
+    assert all(at_rest(load_level(i)) for i in level_ids())
+    level = make(candies=[{"pos": (100, 300)}], pins=[{"pos": (100, 150), "track": {"to": (300, 150), "period": 4}}])
+    w = world_of(level)
+    w.advance(200)  # half a round trip: the hook is at the other end, the candy has followed
+    assert (w.ropes[0].ax, w.ropes[0].ay) == pytest.approx((300, 150)) and w.candies[0].x > 200
+    assert level.pins[0].at(1.0) == pytest.approx((200, 150)) and level.pins[0].velocity(1.0)[0] == pytest.approx(
+        100 * math.pi / 2)
 
 
 # -- physics, one element at a time --------------------------------------------------------------------
@@ -619,6 +655,38 @@ def test_same_seed_same_mock_records():
     assert all(1 <= len(r["steps"]) <= C.MAX_ACTIONS for r in first)
 
 
+def test_the_calibrations_baseline_is_what_mock_plays():
+    # calibrate.reference_episode replays MOCK's own draws: same actions, same outcome as the harness.
+    import asyncio
+
+    from deepphy.agents import MockModel
+    from deepphy.config import RunConfig
+    from deepphy.envs.cuttherope.calibrate import reference_episode
+    from deepphy.protocol import LocalEnv, MemoryArtifacts, run_attempt
+
+    spec = get_spec("cuttherope")
+    cls = spec.load()
+    config = RunConfig(env="cuttherope", model="mock", seed=0)
+    for task in [t for t in cls.tasks(cls.Options()) if t.id in ("b1_l01", "b1_l12", "b2_l11", "b5_l01")]:
+        for run in range(3):
+            rec = asyncio.run(run_attempt(spec, spec.load_prompt(), config, task, run, 1, [], LocalEnv(cls()),
+                                          MockModel(), MemoryArtifacts()))
+            won, stars = reference_episode(load_level(task.id), 0, run)
+            assert (rec.success, rec.stars if rec.success else 0) == (won, stars), (task.id, run)
+
+
+def test_needs_tells_a_needed_element_from_decoration():
+    from deepphy.envs.cuttherope.calibrate import needs
+
+    # The rope must be cut; the spikes shut the straight drop; the far bubble is decoration.
+    level = make(candies=[{"pos": (240, 200)}], pins=[{"pos": (240, 80)}], bubbles=[{"pos": (60, 600)}],
+                 spikes=[{"a": (200, 600), "b": (280, 600)}], om_nom=(240, 420), stars=[(240, 260), (240, 300), (240, 340)])
+    level = level.model_copy(update={"solution": Solution(actions=["cut_pin(1)", "success()"], stars=3, best_stars=3)})
+    verdicts = needs(level, max_nodes=120)
+    assert verdicts["P1"] in ("removed", "unused") and verdicts["B1"] == "NOT NEEDED"
+    assert verdicts["S1"] == "NOT NEEDED"  # Om Nom catches the candy above them: they shut nothing
+
+
 # -- prompt -----------------------------------------------------------------------------------------------
 
 
@@ -633,9 +701,34 @@ def test_prompt_states_legend_rules_numbers_and_a_valid_example():
     rules = prompt.rules(task, obs)
     for needle in ("cut_pin(id)", "cut_active_pin(id)", "pop_bubble(id)", "tap_air_cushion(id, times=n)",
                    "sleep(seconds)", "success()", "fail()", "1, 3, 5", f"{C.MAX_ACTIONS} actions",
-                   f"{C.ACTION_INTERVAL:g} s", f"{C.RUN_ON_CAP:g} s", "Spiders", "Magic hats", "Bubbles", "stars"):
+                   f"{C.ACTION_INTERVAL:g} s", f"{C.RUN_ON_CAP:g} s", "Spiders", "Magic hats", "Bubbles", "stars",
+                   f"{C.GRAVITY:g} px/s^2", f"{C.OMNOM_RADIUS:g} px)", "cut_pin(2, 3)", "hook"):
         assert needle in rules, needle
     obs.action_space.parse(prompt.example(obs))
     for fmt in PromptFormat:
         messages = build_messages(prompt, fmt, task, obs, [])
         assert messages[1].images and "You can now" in messages[1].text
+
+
+def test_the_prompts_examples_win_no_level():
+    # The example reply and the syntax examples of the rules show the syntax, never an answer.
+    from deepphy.envs.cuttherope.oracle import play
+    from deepphy.envs.cuttherope.prompt import EXAMPLE
+
+    for level_id in level_ids():
+        level = load_level(level_id)
+        for plan in ([EXAMPLE], ["cut_pin(2)"], ["cut_pin(2, 3)"]):
+            try:
+                won = play(level, plan)[0]
+            except InvalidAction:  # that pin is not in this level
+                continue
+            assert not won, (level_id, plan)
+
+
+def test_taut_is_said_only_of_a_stretched_rope():
+    from deepphy.envs.cuttherope.env import describe
+
+    w = world_of(make(candies=[{"pos": (240, 300)}], pins=[{"pos": (240, 150), "length": 150.56},
+                                                           {"pos": (100, 300), "length": 100}]))
+    text = describe(w, 0)
+    assert "P1 (rest length 151, slack by 0.6 px" in text and "P2 (rest length 100, taut, stretched 40.0 px" in text

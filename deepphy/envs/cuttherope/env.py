@@ -28,15 +28,69 @@ from deepphy.envs.images import Image
 INITIAL = ObservationCache()
 
 
+class Attempt:
+    """One attempt's rules, without pictures: the world, the actions taken, the cushions
+    tapped. The environment plays through it; so does the calibration's reference baseline."""
+
+    def __init__(self, level: Level) -> None:
+        self.world = World.from_level(level)
+        self.actions = 0
+        self.tapped: list[int] = []
+        self.done = False
+        self.truncated = False
+
+    def space(self) -> CutSpace:
+        world = self.world
+        avail = world.available()
+        level = world.level
+        return CutSpace(num_pins=len(level.pins), num_active_pins=len(level.active_pins),
+                        num_bubbles=len(level.bubbles), num_cushions=len(level.cushions),
+                        pins=avail["pins"], active_pins=avail["active_pins"], bubbles=avail["bubbles"],
+                        cushions_tapped=sorted(self.tapped))
+
+    def play(self, action: CutAction) -> list[str]:
+        """Apply one valid action and let the world run; after the last action it runs on
+        to decide. Returns the feedback, in parts."""
+        assert not self.done, "the attempt is over"
+        world = self.world
+        self.actions += 1
+        if action.name == "tap_air_cushion" and action.ids[0] not in self.tapped:
+            self.tapped.append(action.ids[0])
+        words = act(world, action)
+        feedback = [f"{format_action(action)}: {words}", *_event_words(world)]
+        if not world.decided and self.actions >= C.MAX_ACTIONS:
+            feedback.append(f"that was the last of {C.MAX_ACTIONS} actions: the world runs on "
+                            f"(at most {C.RUN_ON_CAP:g} s) to decide the outcome")
+            world.run_on(seconds_to_steps(C.RUN_ON_CAP))
+            feedback += _event_words(world)
+            self.truncated = not world.decided
+        self.done = world.decided or self.truncated
+        if world.decided:
+            won = world.status == "won"
+            feedback.append(f"LEVEL {'WON' if won else 'LOST'} at t = {world.time:.2f} s: {world.reason}"
+                            + (f", with {world.stars_collected} of {len(world.level.stars)} stars" if won else ""))
+        elif self.truncated:
+            feedback.append(f"undecided after {C.RUN_ON_CAP:g} s more: the attempt ends unsolved")
+        else:
+            feedback.append(f"t = {world.time:.2f} s, stars {world.stars_collected}/{len(world.level.stars)}")
+        return feedback
+
+    @property
+    def stars(self) -> int:
+        """The attempt's stars: those the candy touched, if won."""
+        return self.world.stars_collected if self.world.status == "won" else 0
+
+
 class CutTheRopeEnv(Environment):
     spec = SPEC
 
     def __init__(self, options=None) -> None:
         super().__init__(options)
-        self.world: World | None = None
-        self.actions = 0
-        self.done = False
-        self.tapped: list[int] = []
+        self.attempt: Attempt | None = None
+
+    @property
+    def world(self) -> World | None:
+        return self.attempt.world if self.attempt else None
 
     @classmethod
     def tasks(cls, options) -> list[Task]:
@@ -54,73 +108,47 @@ class CutTheRopeEnv(Environment):
 
     def start(self, level: Level, observe: bool = True) -> Observation | None:
         """Start an attempt of `level` (a level given as data, e.g. one being designed)."""
-        self.world = World.from_level(level)
-        self.actions, self.done, self.tapped = 0, False, []
+        self.attempt = Attempt(level)
         return self.observation() if observe else None
 
     def step(self, action: Action) -> StepResult:
-        assert self.world is not None and not self.done, "reset() first; the attempt is over"
+        attempt = self.attempt
+        assert attempt is not None and not attempt.done, "reset() first; the attempt is over"
         assert isinstance(action, CutAction)
-        world = self.world
+        world = attempt.world
         problem = invalid_reason(world, action)
         if problem:
-            self.done = True
+            attempt.done = True
             return StepResult(terminated=True, invalid_reason=problem, feedback=f"invalid action: {problem}",
                               stars=0, info=self._info())
-        self.actions += 1
-        if action.name == "tap_air_cushion" and action.ids[0] not in self.tapped:
-            self.tapped.append(action.ids[0])
-        words = act(world, action)
-        feedback = [f"{format_action(action)}: {words}", *_event_words(world)]
-        truncated = False
-        if not world.decided and self.actions >= C.MAX_ACTIONS:
-            feedback.append(f"that was the last of {C.MAX_ACTIONS} actions: the world runs on "
-                            f"(at most {C.RUN_ON_CAP:g} s) to decide the outcome")
-            world.run_on(seconds_to_steps(C.RUN_ON_CAP))
-            feedback += _event_words(world)
-            truncated = not world.decided
+        text = "; ".join(attempt.play(action))
         won = world.status == "won"
-        self.done = world.decided or truncated
-        if world.decided:
-            feedback.append(f"LEVEL {'WON' if won else 'LOST'} at t = {world.time:.2f} s: {world.reason}"
-                            + (f", with {world.stars_collected} of {len(world.level.stars)} stars" if won else ""))
-        elif truncated:
-            feedback.append(f"undecided after {C.RUN_ON_CAP:g} s more: the attempt ends unsolved")
-        else:
-            feedback.append(f"t = {world.time:.2f} s, stars {world.stars_collected}/{len(world.level.stars)}")
-        text = "; ".join(feedback)
         banner = None
         if world.decided:
             banner = f"WON: {world.stars_collected} star(s)" if won else f"LOST: {world.reason}"
-        elif truncated:
+        elif attempt.truncated:
             banner = "not decided: out of actions"
         frame = Image.from_array(
-            f"a{self.actions}",
-            f"the level after action {self.actions} ({format_action(action)}), t = {world.time:.2f} s; "
+            f"a{attempt.actions}",
+            f"the level after action {attempt.actions} ({format_action(action)}), t = {world.time:.2f} s; "
             "magenta dots trace the candy's path",
             render(world, trail=True, banner=banner[:60] if banner else None),
         )
         return StepResult(
             terminated=world.decided,
-            truncated=truncated,
+            truncated=attempt.truncated,
             success=won,
-            observation=None if self.done else self.observation(),
+            observation=None if attempt.done else self.observation(),
             feedback=text,
             key_frames=[frame],
-            stars=(world.stars_collected if won else 0) if self.done else None,
+            stars=attempt.stars if attempt.done else None,
             info=self._info(),
         )
 
     # -- observation --------------------------------------------------------------------------
 
     def space(self) -> CutSpace:
-        world = self.world
-        avail = world.available()
-        level = world.level
-        return CutSpace(num_pins=len(level.pins), num_active_pins=len(level.active_pins),
-                        num_bubbles=len(level.bubbles), num_cushions=len(level.cushions),
-                        pins=avail["pins"], active_pins=avail["active_pins"], bubbles=avail["bubbles"],
-                        cushions_tapped=sorted(self.tapped))
+        return self.attempt.space()
 
     def observation(self) -> Observation:
         world = self.world
@@ -130,11 +158,11 @@ class CutTheRopeEnv(Environment):
             "B bubbles, C air cushions); white labels name magic hats (H) and electric barriers (E).",
             render(world),
         )
-        return Observation(images=[image], text=describe(world, self.actions), action_space=self.space())
+        return Observation(images=[image], text=describe(world, self.attempt.actions), action_space=self.space())
 
     def _info(self) -> dict:
         w = self.world
-        return {"t": round(w.time, 2), "actions": self.actions, "status": w.status, "reason": w.reason,
+        return {"t": round(w.time, 2), "actions": self.attempt.actions, "status": w.status, "reason": w.reason,
                 "stars_touched": w.stars_collected}
 
 
@@ -241,7 +269,13 @@ def describe(world: World, actions_taken: int) -> str:
         parts = []
         for k, p in enumerate(level.pins, 1):
             r = world.rope_of_pin(k)
-            parts.append(f"P{k} {_xy(p.pos)} " + (f"rope attached (length {r.length:.0f})" if r else "no rope (cut)"))
+            where = _xy(p.at(world.time))
+            if p.track:
+                vx, vy = p.velocity(world.time)
+                heading = f"moving toward {_xy(p.track.to if vx * (p.track.to[0] - p.pos[0]) + vy * (p.track.to[1] - p.pos[1]) > 0 else p.pos)}"
+                where += (f" (a hook sliding between {_xy(p.pos)} and {_xy(p.track.to)}, one round trip every "
+                          f"{p.track.period:g} s; {heading} at {math.hypot(vx, vy):.0f} px/s)")
+            parts.append(f"P{k} {where} " + (f"rope attached (rest length {r.length:.0f})" if r else "no rope (cut)"))
         lines.append("Pins: " + "; ".join(parts) + ".")
     if world.active_pins:
         words = {"armed": "waiting for the candy", "attached": "its rope holds the candy", "cut": "used (rope cut)",

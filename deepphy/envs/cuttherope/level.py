@@ -3,8 +3,8 @@
 A level lists its elements; each element kind is numbered from 1 in the order of its list,
 and those numbers are the ids the model sees on the image and names in actions (pin 1 is
 labelled P1 and cut with `cut_pin(1)`). Positions are screen units (see constants.py: the
-480 x 720 screenshot, y down). Every level stores one winning plan found by the oracle
-(solve.py); a test replays all of them.
+480 x 720 screenshot, y down). Every level states its idea (what it teaches or tests) and
+stores one 3-star plan found by the oracle (solve.py make); a test replays all of them.
 
 Light module (pydantic only): the action space and the prompt read levels without pymunk.
 """
@@ -25,10 +25,10 @@ from deepphy.envs.cuttherope.constants import HEIGHT, MAX_ACTIONS, WIDTH
 LEVELS_DIR = Path(__file__).parent / "levels"
 _NUMBER_LIST = re.compile(r"\[\s*(-?[0-9.]+(?:,\s*-?[0-9.]+)*)\s*\]")
 BOXES = {1: 24, 2: 23, 3: 7, 4: 15, 5: 19}  # levels per box: the reference set's sizes (88 in all)
-BOX_THEMES = {
-    1: "ropes, stars, bubbles and spikes",
+BOX_THEMES = {  # season 1's boxes: Cardboard, Fabric, Foil, Magic, Valentine
+    1: "ropes, bubbles, automatic ropes, stretched ropes, spikes",
     2: "air cushions and spiders",
-    3: "active pins",
+    3: "hooks on tracks, electric sparks, walls",
     4: "magic hats",
     5: "two candy halves",
 }
@@ -136,14 +136,6 @@ class Solution(_Model):
     best_stars: int = Field(ge=0, le=3)  # best star count the search found (this plan's, or more)
 
 
-class DesignInfo(_Model):
-    """How a level was made (design.py), for the record."""
-
-    stage: str
-    seed: int  # the proposal's seed within its stage
-    reference_win_rate: float = Field(ge=0, le=1)  # how often the reference random agent wins it
-
-
 class Level(_Model):
     id: str = Field(pattern=r"^b[1-5]_l[0-9]{2}$")
     title: str = ""
@@ -160,7 +152,6 @@ class Level(_Model):
     stars: list[Point] = Field(min_length=3, max_length=3)
     om_nom: Point  # the centre of Om Nom (his mouth)
     solution: Solution | None = None
-    design: DesignInfo | None = None
 
     @property
     def box(self) -> int:

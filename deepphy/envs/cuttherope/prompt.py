@@ -3,20 +3,22 @@ action syntax. Every number comes from constants.py."""
 
 from __future__ import annotations
 
+import math
+
 from deepphy.envs.base import Observation, Task
 from deepphy.envs.cuttherope import constants as C
-from deepphy.envs.cuttherope.space import CutSpace
 from deepphy.prompts.base import EnvPrompt
 
 
 class CutTheRopePrompt(EnvPrompt):
     def rules(self, task: Task, observation: Observation) -> str:
         times = ", ".join(str(t) for t in C.TAP_TIMES)
+        fall_100 = math.sqrt(2 * 100 / C.GRAVITY)
         return f"""You are playing Cut the Rope, level "{task.id}". Feed the candy to Om Nom.
 
 The picture ({C.WIDTH} x {C.HEIGHT} pixels) is the whole level; positions in the text are in these
 pixels (px), x to the right and y DOWNWARD from the top-left corner. Gravity pulls the candy down
-the screen.
+the screen at {C.GRAVITY:g} px/s^2 (let go from rest, it falls 100 px in about {fall_100:.2f} s).
 - Candy: the red disc with white stripes. In some levels there are two smaller pink candy halves
   instead: they join into one candy when they touch, and Om Nom eats only a whole candy.
 - Om Nom: the round green creature with his mouth open in the middle (a disc of radius
@@ -24,11 +26,14 @@ the screen.
   half that touches him is lost.
 - Ropes: lines from a pin to the candy. A rope pulls only when stretched beyond its length:
   slack (drawn sagging) it pulls nothing; taut it holds the candy like a pendulum (it swings)
-  and gives a little, like a stiff elastic; jerked taut it bounces the candy back. A rope
+  and gives a little, like a stiff elastic ({1 / C.ROPE_STIFFNESS:g} px per candy weight it carries); jerked
+  taut it bounces the candy back. A rope
   drawn red is stretched: it contracts fast and throws the candy toward its pin. Cutting a
   rope lets the candy fly on with the velocity it had at that moment. Ropes pass through
   everything.
-- Pins (gray dots, yellow labels P1, P2, ...): each holds one rope.
+- Pins (gray dots, yellow labels P1, P2, ...): each holds one rope. A hook is a pin that slides
+  back and forth along a light gray groove by itself (the text gives its round-trip time); its
+  rope moves with it.
 - Active pins (blue dots in a dashed blue circle, labels A1, ...): when the candy's centre
   enters the dashed circle, a new rope attaches from that pin (as long as the candy's distance
   then), and the candy swings on it.
@@ -83,9 +88,9 @@ now"); a rope already cut or a bubble already popped cannot be used again. Anyth
                 "whether it will reach Om Nom, hit a hazard or leave the screen")
 
     def example(self, observation: Observation) -> str:
-        space = observation.action_space
-        if isinstance(space, CutSpace):
-            actions = space.element_actions(tap_times=(1,))
-            if actions:
-                return space.format(actions[0])
-        return "sleep(1)"
+        # A wait: the syntax of an action without a hint of any level's answer (doing nothing
+        # wins no level; a test checks that this example wins none).
+        return EXAMPLE
+
+
+EXAMPLE = "sleep(0.5)"

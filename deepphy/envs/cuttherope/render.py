@@ -7,7 +7,8 @@ Legend (the prompt repeats it):
 - walls: thick brown bars with a light edge;
 - ropes: brown lines from a pin to the candy, redder the more they are stretched (fully red
   at ROPE_RED_STRETCH px); a slack rope sags;
-- pins: dark gray dots labelled P1, P2, ...;
+- pins: dark gray dots labelled P1, P2, ...; a hook on a track slides along a light gray
+  groove with a stop at each end;
 - active pins: blue dots inside a dashed blue circle, labelled A1, ...: a rope attaches
   when the candy enters the circle (faded once used);
 - bubbles: light blue rings labelled B1, ... (the label follows the bubble);
@@ -48,6 +49,7 @@ OMNOM = (90, 185, 60)
 MOUTH = (120, 20, 30)
 SPIKE = (75, 75, 85)
 WALL = (120, 85, 50)
+TRACK = (150, 150, 160)
 WALL_EDGE = (200, 170, 120)
 ELECTRIC = (250, 230, 40)
 SPIDER = (25, 25, 25)
@@ -71,6 +73,9 @@ def render(world: World, *, labels: bool = True, trail: bool = False, banner: st
     for k, e in enumerate(level.electrics):
         _electric(img, e.a, e.b, world.electric_live(k))
         todo.append((f"E{k + 1}", ((e.a[0] + e.b[0]) / 2, (e.a[1] + e.b[1]) / 2), 14, False))
+    for pin in level.pins:
+        if pin.track:
+            _track(img, pin.pos, pin.track.to)
     for s in level.spikes:
         _spikes(img, s.a, s.b)
     for w in level.walls:
@@ -105,10 +110,11 @@ def render(world: World, *, labels: bool = True, trail: bool = False, banner: st
         cv2.polylines(img, [np.round(path).astype(np.int32)], False, colour, 3, cv2.LINE_AA)
     for k, pin in enumerate(level.pins):
         attached = world.rope_of_pin(k + 1) is not None
-        cv2.circle(img, _pt(pin.pos), int(C.PIN_RADIUS), PIN if attached else FADED, -1, cv2.LINE_AA)
-        cv2.circle(img, _pt(pin.pos), int(C.PIN_RADIUS) - 3, (200, 200, 200), -1, cv2.LINE_AA)
+        at = pin.at(world.time)
+        cv2.circle(img, _pt(at), int(C.PIN_RADIUS), PIN if attached else FADED, -1, cv2.LINE_AA)
+        cv2.circle(img, _pt(at), int(C.PIN_RADIUS) - 3, (200, 200, 200), -1, cv2.LINE_AA)
         if attached:
-            todo.append((f"P{k + 1}", pin.pos, C.PIN_RADIUS + 4, True))
+            todo.append((f"P{k + 1}", at, C.PIN_RADIUS + 4, True))
     for s in world.spiders:
         path = rope_paths.get(("pin", s.pin))
         if s.gone or path is None:
@@ -227,6 +233,14 @@ def _om_nom(img, centre) -> None:
     for side in (-1, 1):  # teeth
         cv2.rectangle(img, _pt((mx + side * 0.2 * r - 3, my - 0.28 * r)), _pt((mx + side * 0.2 * r + 3, my - 0.12 * r)),
                       WHITE, -1)
+
+
+def _track(img, a, b) -> None:
+    """The groove a hook slides along, with a stop at each end."""
+    cv2.line(img, _pt(a), _pt(b), TRACK, 6, cv2.LINE_AA)
+    cv2.line(img, _pt(a), _pt(b), (235, 225, 210), 2, cv2.LINE_AA)
+    for end in (a, b):
+        cv2.circle(img, _pt(end), 5, TRACK, -1, cv2.LINE_AA)
 
 
 def _wall(img, a, b) -> None:
