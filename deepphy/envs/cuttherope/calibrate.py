@@ -93,12 +93,16 @@ def grid_share(level: Level, element_moves: int) -> dict:
     return {"plans": plans, "of": total, "won": won, "three_stars": three}
 
 
-def _step(world: World, pause: float, move: CutAction) -> World:
+def _pause(world: World, pause: float) -> World:
     w = world.snapshot()
     if pause > 0 and not w.decided:
         act(w, CutAction(name="sleep", seconds=pause))
-    if not w.decided:
-        act(w, move)
+    return w
+
+
+def _move(world: World, move: CutAction) -> World:
+    w = world.snapshot()
+    act(w, move)
     return w
 
 
@@ -110,25 +114,28 @@ def _count(world: World, k: int) -> int:
 
 
 def _all_leaves(world: World, k: int):
-    if k == 0 or world.decided:
-        yield world
-        return
-    options = moves(world)
-    if not options:
+    if k == 0 or world.decided or not moves(world):
         yield world
         return
     for pause in GRID_PAUSES:
+        paused = _pause(world, pause)
+        options = moves(paused)  # what can be named after the pause (a hat may have snapped a rope)
+        if paused.decided or not options:
+            yield paused
+            continue
         for move in options:
-            yield from _all_leaves(_step(world, pause, move), k - 1)
+            yield from _all_leaves(_move(paused, move), k - 1)
 
 
 def _sample_leaf(world: World, k: int, rng: np.random.Generator) -> World:
     for _ in range(k):
+        if world.decided or not moves(world):
+            break
+        world = _pause(world, GRID_PAUSES[int(rng.integers(len(GRID_PAUSES)))])
         options = moves(world)
         if world.decided or not options:
             break
-        pause = GRID_PAUSES[int(rng.integers(len(GRID_PAUSES)))]
-        world = _step(world, pause, options[int(rng.integers(len(options)))])
+        world = _move(world, options[int(rng.integers(len(options)))])
     return world
 
 

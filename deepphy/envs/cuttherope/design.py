@@ -207,11 +207,11 @@ BOX1: list[Level] = [
          "it drops to Om Nom. Cut the right rope first and the swing goes the wrong way.",
          candies=[(210, 270)], ropes=[rope(120, 150), rope(300, 150)], om_nom=(420, 520),
          stars=[(280, 320), (350, 300), (410, 400)]),
-    make("b1_l17", "Pop before the spikes",
-         "The bubble carries the candy up through the stars toward a row of spikes. Pop it after the last star and "
-         "before the spikes, and the candy falls all the way down to Om Nom.",
-         candies=[(330, 420)], bubbles=[{"pos": (330, 420)}], ropes=[rope(330, 520)],
-         spikes=[spikes((200, 40), (460, 40))], om_nom=(330, 650), stars=[(330, 300), (330, 180), (330, 110)]),
+    make("b1_l17", "Under the spikes",
+         "Spikes block the straight drop to Om Nom. Cut the left rope: the right one swings the candy out and back; "
+         "let go as it swings back low, and it flies under the spikes into Om Nom.",
+         candies=[(200, 250)], ropes=[rope(120, 150), rope(330, 120)], spikes=[spikes((110, 310), (205, 310))],
+         om_nom=(180, 440), stars=[(290, 305), (330, 330), (250, 370)]),
     make("b1_l18", "Throw over the spikes",
          "A row of spikes stands between the candy and Om Nom. The red rope can throw the candy over it, if you let "
          "go at the right moment.",
@@ -408,8 +408,8 @@ BOX3: list[Level] = [
     make("b3_l03", "A ramp",
          "Drop the candy on the metal ramp and it rolls down, through the stars, into Om Nom. Cut the wrong rope "
          "first and it swings away from the ramp.",
-         candies=[(140, 240)], ropes=[rope(140, 120), rope(40, 140)], walls=[wall((60, 400), (330, 500))],
-         om_nom=(400, 560), stars=[(140, 330), (210, 400), (300, 440)]),
+         candies=[(140, 240)], ropes=[rope(140, 120), rope(40, 140)], walls=[wall((110, 400), (340, 490))],
+         om_nom=(400, 550), stars=[(140, 330), (210, 400), (300, 440)]),
     make("b3_l04", "Hook and sparks",
          "The hook carries the candy back and forth above a barrier that sparks on and off. Cut when the candy is "
          "over Om Nom and the barrier will be off as it passes.",
