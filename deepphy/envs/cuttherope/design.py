@@ -506,10 +506,10 @@ BOX4: list[Level] = [
          candies=[(80, 200)], ropes=[rope(80, 80, track=track(400, 80, 8.0))], hats=[hats((300, 450), 90, (420, 380), 270)],
          om_nom=(420, 640), stars=[(200, 210), (300, 350), (420, 520)]),
     make("b4_l13", "Roll into the hat",
-         "Drop the candy on the ramp: it rolls down into the hat at its foot, and the pair drops it on Om Nom. Cut "
-         "the wrong rope first and it swings off the ramp.",
-         candies=[(170, 180)], ropes=[rope(170, 80), rope(40, 60, slack=0)], walls=[wall((90, 330), (330, 420))],
-         hats=[hats((380, 420), 180, (100, 470), 270)], om_nom=(100, 650), stars=[(170, 260), (260, 360), (100, 570)]),
+         "Drop the candy on the ramp: it rolls down into the hat at its foot, and the other hat throws it down to Om "
+         "Nom. Cut the wrong rope first and it swings off the ramp's end.",
+         candies=[(170, 180)], ropes=[rope(170, 80), rope(40, 60, slack=0)], walls=[wall((150, 345), (330, 420))],
+         hats=[hats((380, 420), 180, (100, 470), 300)], om_nom=(210, 640), stars=[(170, 260), (260, 360), (150, 560)]),
     make("b4_l14", "Puff the bubble under the hat",
          "The bubble rises beside the hat; puff it over so that it rises into the hat, and pop it when its pair lets "
          "it out over Om Nom.",
