@@ -528,8 +528,8 @@ BOX4: list[Level] = [
 BOX5: list[Level] = [
     make("b5_l01", "Two halves",
          "Two candy halves, each on its own rope. Cut the left half's short rope: it swings into the right half and "
-         "they join; then cut the rest and the whole candy drops to Om Nom.",
-         candies=[(140, 250), (300, 250)],
+         "they join; then let the whole candy go when its swing will carry it to Om Nom (a half alone is no meal).",
+         candies=[(140, 250), (300, 330)],
          ropes=[rope(140, 150, candy=0), rope(300, 140, candy=0, slack=0), rope(300, 150, candy=1)],
          om_nom=(300, 620), stars=[(220, 290), (300, 400), (300, 500)]),
     make("b5_l02", "Meet in the middle",
