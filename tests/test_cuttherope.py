@@ -20,7 +20,7 @@ import pytest
 
 from deepphy.envs import ActionSpace, InvalidAction, Task, get_spec
 from deepphy.envs.cuttherope import constants as C
-from deepphy.envs.cuttherope.level import BOXES, Level, level_ids, load_level
+from deepphy.envs.cuttherope.level import BOXES, Level, Solution, level_ids, load_level
 from deepphy.envs.cuttherope.space import CutAction, CutSpace
 
 STEP = 1.0 / C.STEPS_PER_SECOND
@@ -76,16 +76,52 @@ def test_package_import_stays_light():
 
 
 def test_every_level_file_validates_and_each_box_has_its_mechanics():
+    # Season 1's order: Cardboard (ropes, bubbles, automatic ropes, stretched ropes, spikes, several
+    # ropes in one cut), Fabric (air cushions, spiders), Foil (hooks on tracks, sparks, walls), Magic
+    # (hats), Valentine (two halves); each box uses earlier mechanics, never a later box's.
     levels = [load_level(i) for i in level_ids()]
     assert len(levels) == sum(BOXES.values()) == 88
     by_box = {b: [lv for lv in levels if lv.box == b] for b in BOXES}
-    assert all(lv.solution is not None and 1 <= len(lv.solution.actions) <= C.MAX_ACTIONS for lv in levels)
-    assert any(lv.bubbles for lv in by_box[1]) and any(lv.spikes for lv in by_box[1])
-    assert not any(lv.cushions or lv.hats or lv.active_pins or lv.halves for lv in by_box[1])
-    assert any(lv.cushions for lv in by_box[2]) and any(p.spider for lv in by_box[2] for p in lv.pins)
-    assert all(lv.active_pins for lv in by_box[3])
-    assert all(lv.hats for lv in by_box[4]) and any(lv.electrics for lv in by_box[4])
-    assert all(lv.halves for lv in by_box[5]) and not any(lv.halves for lv in levels if lv.box < 5)
+    assert all(lv.solution is not None and 1 <= len(lv.solution.actions) <= C.MAX_ACTIONS and lv.idea
+               for lv in levels)
+
+    def stretched(lv):
+        return any(lv.rope_length(k) < math.dist(p.at(0), lv.candies[p.candy].pos) - 1 for k, p in enumerate(lv.pins))
+
+    def first(box, has):
+        return next(n for n, lv in enumerate(by_box[box], 1) if has(lv))
+
+    assert (first(1, lambda lv: lv.bubbles) < first(1, lambda lv: lv.active_pins) < first(1, stretched)
+            < first(1, lambda lv: lv.spikes) < first(1, lambda lv: any("," in a for a in lv.solution.actions)))
+    assert first(2, lambda lv: lv.cushions) < first(2, lambda lv: any(p.spider for p in lv.pins))
+    assert all(any(p.track for p in lv.pins) or lv.electrics or lv.walls for lv in by_box[3])
+    assert all(lv.hats for lv in by_box[4]) and all(lv.halves for lv in by_box[5])
+    later = {1: ("cushions", "hats", "electrics", "walls"), 2: ("hats", "electrics", "walls"), 3: ("hats",)}
+    for box, kinds in later.items():
+        assert not any(getattr(lv, k) for lv in by_box[box] for k in kinds)
+        assert not any(lv.halves or any(p.spider or p.track for p in lv.pins) for lv in by_box[box] if box < 2)
+    assert not any(lv.halves for lv in levels if lv.box < 5)
+
+
+def test_the_level_files_are_the_designs():
+    # design.py is how the levels were made: every file holds its design (and the plan the oracle found).
+    from deepphy.envs.cuttherope.design import LEVELS
+
+    assert [lv.id for lv in LEVELS] == level_ids()
+    for lv in LEVELS:
+        assert load_level(lv.id).model_copy(update={"solution": None}) == lv
+
+
+def test_candies_start_at_rest_and_a_hook_moves_its_rope():
+    from deepphy.envs.cuttherope.calibrate import at_rest
+
+    assert all(at_rest(load_level(i)) for i in level_ids())
+    level = make(candies=[{"pos": (100, 300)}], pins=[{"pos": (100, 150), "track": {"to": (300, 150), "period": 4}}])
+    w = world_of(level)
+    w.advance(200)  # half a round trip: the hook is at the other end, the candy has followed
+    assert (w.ropes[0].ax, w.ropes[0].ay) == pytest.approx((300, 150)) and w.candies[0].x > 200
+    assert level.pins[0].at(1.0) == pytest.approx((200, 150)) and level.pins[0].velocity(1.0)[0] == pytest.approx(
+        100 * math.pi / 2)
 
 
 # -- physics, one element at a time --------------------------------------------------------------------
@@ -105,26 +141,58 @@ def test_cut_rope_releases_the_candy_with_its_swing_velocity():
     c = w.candies[0]
     speed = math.hypot(c.vx, c.vy)
     assert abs(c.x - 240) < 8 and speed == pytest.approx(math.sqrt(2 * C.GRAVITY * L), rel=0.03)
+    assert 2.0 < w.rope_stretch(w.ropes[0]) < 4.0  # the rope gives ~1 px per candy weight; ~3 g at the bottom
     x0, y0, vx0, vy0 = c.x, c.y, c.vx, c.vy
     w.cut_pin(1)
     w.advance(20)  # 0.2 s of free flight: a parabola from the release point and velocity
     t = 20 * STEP
     assert w.candies[0].x == pytest.approx(x0 + vx0 * t, abs=0.5)
     assert w.candies[0].y == pytest.approx(y0 + vy0 * t + 0.5 * C.GRAVITY * t * t, abs=2.0)
-    held = world_of(make(candies=[{"pos": (240 + L, 200)}], pins=[{"pos": (240, 200)}]))
-    held.advance(w.step_count)
-    stretch = math.dist((held.candies[0].x, held.candies[0].y), (240, 200)) - L
-    assert -0.5 < stretch < 2.0  # still held at the rope's length (a little stretched while it pulls ~3 g)
 
 
-def test_a_taut_rope_holds_and_is_drawn_redder_the_more_it_pulls():
+def test_a_swing_keeps_its_energy_and_returns_to_its_height():
+    w = world_of(make(candies=[{"pos": (390, 200)}], pins=[{"pos": (240, 200)}]))
+    w.advance(150)  # near the far end of the first swing (half a period ~1.35 s)
+    heights = []
+    for _ in range(30):
+        w.advance(1)
+        heights.append(w.candies[0].y)
+    assert w.candies[0].x < 100 and abs(min(heights) - 200) < 3.0
+
+
+def test_two_taut_ropes_share_the_weight_and_are_drawn_by_their_stretch():
     w = world_of(make(candies=[{"pos": (240, 300)}], pins=[{"pos": (140, 200)}, {"pos": (340, 200)}]))
-    w.advance(50)
+    w.advance(100)
     expected = 1 / (2 * math.cos(math.radians(45)))  # two ropes at 45 degrees carry the weight
-    assert [r.tension for r in w.ropes] == pytest.approx([expected, expected], rel=0.02)
-    assert (w.candies[0].x, w.candies[0].y) == pytest.approx((240, 300), abs=0.5)
+    assert [w.rope_tension(r) for r in w.ropes] == pytest.approx([expected, expected], rel=0.03)
+    assert [w.rope_stretch(r) for r in w.ropes] == pytest.approx([expected / C.ROPE_STIFFNESS] * 2, rel=0.03)
+    assert (w.candies[0].x, w.candies[0].y) == pytest.approx((240, 300.7), abs=0.5)
 
 
+def test_a_rope_jerked_taut_gives_and_throws_the_candy_back():
+    # The candy falls 100 px on a slack rope: the rope catches it, stretches and bounces it up.
+    w = world_of(make(candies=[{"pos": (240, 200)}], pins=[{"pos": (240, 100), "length": 200}]))
+    speeds, stretch = [], 0.0
+    for _ in range(80):
+        w.advance(1)
+        speeds.append(w.candies[0].vy)
+        stretch = max(stretch, w.rope_stretch(w.ropes[0]))
+    fall = max(speeds)
+    bounce = -min(speeds)
+    assert fall == pytest.approx(math.sqrt(2 * C.GRAVITY * 100), rel=0.05)
+    assert 5.0 < stretch < 20.0  # it gives ...
+    assert 0.2 * fall < bounce < 0.6 * fall  # ... and throws the candy back up (a damped bounce)
+
+
+def test_a_stretched_rope_contracts_and_throws_the_candy_toward_its_pin():
+    w = world_of(make(candies=[{"pos": (240, 300)}], pins=[{"pos": (100, 300), "length": 110}]))
+    assert w.rope_stretch(w.ropes[0]) == pytest.approx(30.0)
+    w.advance(10)
+    c = w.candies[0]
+    assert c.vx < -400 and c.x < 225  # pulled toward the pin, fast
+    w.cut_pin(1)
+    w.advance(10)
+    assert w.candies[0].x < 180  # and it flies on
 def test_a_bubble_catches_and_lifts_the_candy_until_popped():
     w = world_of(make(candies=[{"pos": (240, 200)}], bubbles=[{"pos": (240, 330)}]))
     w.advance(100)
@@ -254,7 +322,7 @@ def test_an_active_pin_attaches_a_rope_when_the_candy_enters_its_circle():
 
 
 def test_two_halves_join_with_momentum_conserved_and_only_a_whole_candy_is_eaten():
-    level = make(candies=[{"pos": (180, 300)}, {"pos": (300, 300)}], om_nom=(240, 310))
+    level = make(candies=[{"pos": (180, 300)}, {"pos": (300, 300)}], om_nom=(240, 420))
     w = world_of(level)
     w.candies[0].vx, w.candies[1].vx = 200.0, -100.0
     w.advance(40)
@@ -262,7 +330,39 @@ def test_two_halves_join_with_momentum_conserved_and_only_a_whole_candy_is_eaten
     assert w.status == "won"  # the whole candy falls into the mouth right under it
     apart = world_of(make(candies=[{"pos": (240, 280)}, {"pos": (100, 100)}], om_nom=(240, 330)))
     apart.advance(30)
-    assert apart.status == "playing"  # a half passes Om Nom by
+    assert apart.status == "lost" and "half" in apart.reason  # he ate a half: the level needs the whole candy
+
+
+def test_the_candy_does_not_pass_through_a_wall():
+    # Thrown hard at a wall, the candy bounces off it (elastically, a little) and stays on its side.
+    w = world_of(make(candies=[{"pos": (100, 300)}], walls=[{"a": (300, 100), "b": (300, 500)}]))
+    w.candies[0].vx, w.candies[0].vy = 1500.0, -400.0
+    xs = []
+    for _ in range(60):
+        w.advance(1)
+        xs.append(w.candies[0].x)
+    assert max(xs) <= 300 - C.WALL_RADIUS - C.CANDY_RADIUS + 1500.0 * STEP  # at most one step's travel into it
+    assert xs[-1] < 200 and w.candies[0].vx == pytest.approx(-C.CANDY_ELASTICITY * 1500.0, rel=0.1)
+    # dropped on a tilted wall it rolls down along it, resting on it
+    ramp = world_of(make(candies=[{"pos": (150, 200)}], walls=[{"a": (60, 300), "b": (420, 420)}]))
+    ramp.advance(100)
+    c = ramp.candies[0]
+    on_line = 300 + (c.x - 60) * 120 / 360  # the wall's y under the candy
+    assert c.x > 170 and c.vx > 0 and on_line - c.y == pytest.approx((C.CANDY_RADIUS + C.WALL_RADIUS) / math.cos(
+        math.atan2(120, 360)), abs=1.5)
+
+
+def test_the_candy_touching_om_noms_drawn_disc_is_eaten():
+    reach = C.OMNOM_RADIUS + C.CANDY_RADIUS
+    for gap, won in ((-1.0, True), (2.0, False)):  # the candy's edge just over / just short of his disc
+        w = world_of(make(candies=[{"pos": (240, 300)}], pins=[{"pos": (240 - 300, 300 - 400)}],
+                          om_nom=(240 + reach + gap, 300)))
+        w.advance(1)
+        assert (w.status == "won") is won
+    # the issue's case: centres 35.7 px apart, the candy covering his mouth, is a win
+    w = world_of(make(candies=[{"pos": (240, 300)}], om_nom=(240, 300 + 35.7 + 40)))
+    w.advance(100)
+    assert w.status == "won" and math.dist((w.candies[0].x, w.candies[0].y), (240, 375.7)) >= 35.7
 
 
 # -- the rules of an attempt -----------------------------------------------------------------------------
@@ -274,8 +374,10 @@ HANGING = dict(candies=[{"pos": (240, 300)}], pins=[{"pos": (240, 150)}], om_nom
 
 def test_winning_reports_the_stars_touched():
     env, obs = env_of(make(**HANGING))
-    result = env.step(obs.action_space.parse("cut_pin(1)"))
-    assert result.terminated and result.success and not result.truncated
+    first = env.step(obs.action_space.parse("cut_pin(1)"))
+    assert not first.done and env.world.time == pytest.approx(C.ACTION_INTERVAL)
+    result = env.step(first.observation.action_space.parse("sleep(2)"))
+    assert result.terminated and result.success and not result.truncated and env.world.time < 2.25
     assert result.stars == 2 and "LEVEL WON" in result.feedback and len(result.key_frames) == 1
 
 
@@ -290,15 +392,34 @@ def test_success_lets_a_falling_candy_arrive():
     far = dict(HANGING, candies=[{"pos": (240, 120)}], pins=[{"pos": (240, 50)}], om_nom=(240, 690))
     env, obs = env_of(make(**far))
     first = env.step(obs.action_space.parse("cut_pin(1)"))
-    assert not first.done  # 1 s is not enough to fall 400 px ...
+    assert not first.done  # the action's interval is not enough to fall 400 px ...
     result = env.step(first.observation.action_space.parse("success()"))
     assert result.success and result.terminated  # ... the run-on after success() is
 
 
-def test_fail_gives_up_at_once():
+def test_fail_stops_acting_and_the_world_runs_on_to_decide():
     env, obs = env_of(make(**HANGING))
-    result = env.step(obs.action_space.parse("fail()"))
-    assert result.terminated and not result.success and env.world.time == 0
+    result = env.step(obs.action_space.parse("fail()"))  # the candy still hangs: lost
+    assert result.terminated and not result.success and env.world.time == pytest.approx(C.RUN_ON_CAP)
+    env, obs = env_of(make(**HANGING))
+    obs = env.step(obs.action_space.parse("cut_pin(1)")).observation
+    result = env.step(obs.action_space.parse("fail()"))  # the candy on its way still wins
+    assert result.terminated and result.success and result.stars == 2
+
+
+def test_ropes_cut_in_one_action_release_together():
+    # A candy held by two ropes at 45 degrees: cut together it falls straight down; cut one
+    # after the other it swings first.
+    level = make(candies=[{"pos": (240, 300)}], pins=[{"pos": (140, 200)}, {"pos": (340, 200)}])
+    env, obs = env_of(level)
+    env.step(obs.action_space.parse("cut_pin(1, 2)"))
+    c = env.world.candies[0]
+    assert env.world.ropes == [] and c.vx == pytest.approx(0.0, abs=1e-9) and c.y > 300
+    env, obs = env_of(level)
+    obs = env.step(obs.action_space.parse("cut_pin(1)")).observation
+    assert abs(env.world.candies[0].vx) > 50  # it swings on P2 ...
+    env.step(obs.action_space.parse("cut_pin(2)"))
+    assert abs(env.world.candies[0].vx) > 50  # ... and flies off sideways
 
 
 def test_the_tenth_action_runs_on_and_truncates_when_undecided():
@@ -345,7 +466,7 @@ def test_used_elements_leave_the_space_and_an_invalid_step_ends_the_attempt():
     assert obs.action_space.pins == [2]
     with pytest.raises(InvalidAction, match="already cut"):
         obs.action_space.parse("cut_pin(1)")
-    result = env.step(CutAction(name="cut_pin", id=1))  # built in code, bypassing the parser
+    result = env.step(CutAction(name="cut_pin", ids=(1,)))  # built in code, bypassing the parser
     assert result.terminated and not result.success and result.invalid_reason
 
 
@@ -356,20 +477,23 @@ SPACE = CutSpace(num_pins=3, num_active_pins=2, num_bubbles=2, num_cushions=2, p
 
 
 @pytest.mark.parametrize("text, expected", [
-    ("cut_pin(1)", CutAction(name="cut_pin", id=1)),
-    ("[cut_pin(3)]", CutAction(name="cut_pin", id=3)),
-    ("I will cut the rope: cut_pin(P3).", CutAction(name="cut_pin", id=3)),
-    ("```python\ncut_pin(id=1)\n```", CutAction(name="cut_pin", id=1)),
-    ("CUT_PIN( id = \"P1\" )", CutAction(name="cut_pin", id=1)),
-    ("cut pin(1)", CutAction(name="cut_pin", id=1)),
-    ("cut_active_pin(A2)", CutAction(name="cut_active_pin", id=2)),
-    ("pop_bubble(2)", CutAction(name="pop_bubble", id=2)),
-    ("popBubble(B2)", CutAction(name="pop_bubble", id=2)),
-    ("tap_air_cushion(1, times=3)", CutAction(name="tap_air_cushion", id=1, times=3)),
-    ("tap_air_cushion(2, 5)", CutAction(name="tap_air_cushion", id=2, times=5)),
-    ("tap_air_cushion(id=2, times=1)", CutAction(name="tap_air_cushion", id=2, times=1)),
-    ("tap_air_cushion(times=3, id='C2')", CutAction(name="tap_air_cushion", id=2, times=3)),
-    ("tap_air_cushion(C1)", CutAction(name="tap_air_cushion", id=1, times=1)),
+    ("cut_pin(1)", CutAction(name="cut_pin", ids=(1,))),
+    ("[cut_pin(3)]", CutAction(name="cut_pin", ids=(3,))),
+    ("I will cut the rope: cut_pin(P3).", CutAction(name="cut_pin", ids=(3,))),
+    ("```python\ncut_pin(id=1)\n```", CutAction(name="cut_pin", ids=(1,))),
+    ("CUT_PIN( id = \"P1\" )", CutAction(name="cut_pin", ids=(1,))),
+    ("cut pin(1)", CutAction(name="cut_pin", ids=(1,))),
+    ("cut_active_pin(A2)", CutAction(name="cut_active_pin", ids=(2,))),
+    ("cut_pin(3, 1)", CutAction(name="cut_pin", ids=(1, 3))),  # one swipe through two ropes
+    ("cut_pin(P1, P3)", CutAction(name="cut_pin", ids=(1, 3))),
+    ("cut_active_pin(2, 1)", CutAction(name="cut_active_pin", ids=(1, 2))),
+    ("pop_bubble(2)", CutAction(name="pop_bubble", ids=(2,))),
+    ("popBubble(B2)", CutAction(name="pop_bubble", ids=(2,))),
+    ("tap_air_cushion(1, times=3)", CutAction(name="tap_air_cushion", ids=(1,), times=3)),
+    ("tap_air_cushion(2, 5)", CutAction(name="tap_air_cushion", ids=(2,), times=5)),
+    ("tap_air_cushion(id=2, times=1)", CutAction(name="tap_air_cushion", ids=(2,), times=1)),
+    ("tap_air_cushion(times=3, id='C2')", CutAction(name="tap_air_cushion", ids=(2,), times=3)),
+    ("tap_air_cushion(C1)", CutAction(name="tap_air_cushion", ids=(1,), times=1)),
     ("sleep(1.5)", CutAction(name="sleep", seconds=1.5)),
     ("sleep(seconds=0.25)", CutAction(name="sleep", seconds=0.25)),
     ("sleep(2s)", CutAction(name="sleep", seconds=2.0)),
@@ -377,7 +501,7 @@ SPACE = CutSpace(num_pins=3, num_active_pins=2, num_bubbles=2, num_cushions=2, p
     ("wait(10)", CutAction(name="sleep", seconds=10.0)),
     ("success()", CutAction(name="success")),
     ("Prediction: it falls. Action: fail()", CutAction(name="fail")),
-    ("First cut_pin(1), no wait, better: pop_bubble(2)", CutAction(name="pop_bubble", id=2)),  # the last counts
+    ("First cut_pin(1), no wait, better: pop_bubble(2)", CutAction(name="pop_bubble", ids=(2,))),  # the last counts
 ])
 def test_parse_accepts_the_syntax_robustly(text, expected):
     assert SPACE.parse(text) == expected
@@ -390,8 +514,11 @@ def test_parse_accepts_the_syntax_robustly(text, expected):
     ("cut_pin(4)", "no pin P4"),
     ("cut_pin(0)", "no pin P0"),
     ("cut_pin(B1)", "is a bubble, not a pin"),
-    ("cut_pin(1, 2)", "exactly one argument"),
-    ("cut_pin()", "exactly one argument"),
+    ("cut_pin(1, 2)", "already cut"),
+    ("cut_pin(1, 1)", "named twice"),
+    ("cut_pin()", "one or more ids"),
+    ("cut_pin(1, x=3)", "one or more ids"),
+    ("pop_bubble(1, 2)", "exactly one argument"),
     ("cut_pin(x)", "not an id"),
     ("pop_bubble(1)", "already popped"),
     ("tap_air_cushion(3)", "no air cushion C3"),
@@ -432,7 +559,7 @@ def test_parse_is_total_and_fast_on_adversarial_text(text):
 def test_format_round_trips_and_sample_is_uniform_over_the_valid_actions():
     rng = np.random.default_rng(0)
     valid = SPACE.valid_actions()
-    assert len(valid) == 2 + 2 + 1 + 2 * 3 + len(C.SAMPLE_SLEEPS) + 2
+    assert len(valid) == 2 + 2 + 2 + 1 + 2 * 3 + len(C.SAMPLE_SLEEPS) + 2  # single cuts, pairs, bubble, taps
     counts = Counter(SPACE.format(SPACE.sample(rng)) for _ in range(6000))
     assert set(counts) == {SPACE.format(a) for a in valid}
     assert max(counts.values()) / min(counts.values()) < 1.5
@@ -528,6 +655,38 @@ def test_same_seed_same_mock_records():
     assert all(1 <= len(r["steps"]) <= C.MAX_ACTIONS for r in first)
 
 
+def test_the_calibrations_baseline_is_what_mock_plays():
+    # calibrate.reference_episode replays MOCK's own draws: same actions, same outcome as the harness.
+    import asyncio
+
+    from deepphy.agents import MockModel
+    from deepphy.config import RunConfig
+    from deepphy.envs.cuttherope.calibrate import reference_episode
+    from deepphy.protocol import LocalEnv, MemoryArtifacts, run_attempt
+
+    spec = get_spec("cuttherope")
+    cls = spec.load()
+    config = RunConfig(env="cuttherope", model="mock", seed=0)
+    for task in [t for t in cls.tasks(cls.Options()) if t.id in ("b1_l01", "b1_l12", "b2_l11", "b5_l01")]:
+        for run in range(3):
+            rec = asyncio.run(run_attempt(spec, spec.load_prompt(), config, task, run, 1, [], LocalEnv(cls()),
+                                          MockModel(), MemoryArtifacts()))
+            won, stars = reference_episode(load_level(task.id), 0, run)
+            assert (rec.success, rec.stars if rec.success else 0) == (won, stars), (task.id, run)
+
+
+def test_needs_tells_a_needed_element_from_decoration():
+    from deepphy.envs.cuttherope.calibrate import needs
+
+    # The rope must be cut; the spikes shut the straight drop; the far bubble is decoration.
+    level = make(candies=[{"pos": (240, 200)}], pins=[{"pos": (240, 80)}], bubbles=[{"pos": (60, 600)}],
+                 spikes=[{"a": (200, 600), "b": (280, 600)}], om_nom=(240, 420), stars=[(240, 260), (240, 300), (240, 340)])
+    level = level.model_copy(update={"solution": Solution(actions=["cut_pin(1)", "success()"], stars=3, best_stars=3)})
+    verdicts = needs(level, max_nodes=120)
+    assert verdicts["P1"] in ("removed", "unused") and verdicts["B1"] == "NOT NEEDED"
+    assert verdicts["S1"] == "NOT NEEDED"  # Om Nom catches the candy above them: they shut nothing
+
+
 # -- prompt -----------------------------------------------------------------------------------------------
 
 
@@ -542,9 +701,34 @@ def test_prompt_states_legend_rules_numbers_and_a_valid_example():
     rules = prompt.rules(task, obs)
     for needle in ("cut_pin(id)", "cut_active_pin(id)", "pop_bubble(id)", "tap_air_cushion(id, times=n)",
                    "sleep(seconds)", "success()", "fail()", "1, 3, 5", f"{C.MAX_ACTIONS} actions",
-                   f"{C.ACTION_INTERVAL:g} s", f"{C.RUN_ON_CAP:g} s", "Spiders", "Magic hats", "Bubbles", "stars"):
+                   f"{C.ACTION_INTERVAL:g} s", f"{C.RUN_ON_CAP:g} s", "Spiders", "Magic hats", "Bubbles", "stars",
+                   f"{C.GRAVITY:g} px/s^2", f"{C.OMNOM_RADIUS:g} px)", "cut_pin(2, 3)", "hook"):
         assert needle in rules, needle
     obs.action_space.parse(prompt.example(obs))
     for fmt in PromptFormat:
         messages = build_messages(prompt, fmt, task, obs, [])
         assert messages[1].images and "You can now" in messages[1].text
+
+
+def test_the_prompts_examples_win_no_level():
+    # The example reply and the syntax examples of the rules show the syntax, never an answer.
+    from deepphy.envs.cuttherope.oracle import play
+    from deepphy.envs.cuttherope.prompt import EXAMPLE
+
+    for level_id in level_ids():
+        level = load_level(level_id)
+        for plan in ([EXAMPLE], ["cut_pin(2)"], ["cut_pin(2, 3)"]):
+            try:
+                won = play(level, plan)[0]
+            except InvalidAction:  # that pin is not in this level
+                continue
+            assert not won, (level_id, plan)
+
+
+def test_taut_is_said_only_of_a_stretched_rope():
+    from deepphy.envs.cuttherope.env import describe
+
+    w = world_of(make(candies=[{"pos": (240, 300)}], pins=[{"pos": (240, 150), "length": 150.56},
+                                                           {"pos": (100, 300), "length": 100}]))
+    text = describe(w, 0)
+    assert "P1 (rest length 151, slack by 0.6 px" in text and "P2 (rest length 100, taut, stretched 40.0 px" in text

@@ -5,8 +5,12 @@
 - `space.py`: the action syntax, availability, MOCK's reference baseline (light);
 - `sim.py`: the world (state, element rules) and pymunk for the dynamics;
 - `render.py`: the OpenCV screenshot; `env.py`: the environment; `prompt.py`: the words;
-- `design.py`: the seeded layout procedures the level files were made with;
-- `solve.py`: the oracle (search for winning plans, replay, solvability report).
+- `design.py`: the 88 levels as designed by hand, each with its idea (the level files are
+  made from them);
+- `oracle.py`: the search for winning plans, replay, the plans' timing;
+- `calibrate.py`: what a level measures (reference baseline, timing grid, robustness, what
+  its three stars need);
+- `solve.py`: the command line (solvability report, calibration, search, make).
 Importing this package does not import pymunk.
 """
 
@@ -25,7 +29,8 @@ SPEC = EnvSpec(
     max_steps=MAX_ACTIONS,
     report=ReportSpec(stars=True, step_noun="action", step_checkpoints=(1, 3, 5, 10)),
     solver="deepphy.envs.cuttherope.solve:main",
-    description="88 levels in 5 boxes: cut ropes, pop bubbles, puff air so the candy reaches Om Nom; 0-3 stars",
+    description="88 levels in 5 boxes (season 1's Cardboard, Fabric, Foil, Magic, Valentine): cut ropes, pop "
+                "bubbles, puff air so the candy reaches Om Nom; 0-3 stars",
 )
 
 __all__ = ["SPEC", "CutAction", "CutSpace"]

@@ -1,403 +1,659 @@
-"""The seeded procedures the 88 level files were made with (`python -m
-deepphy.envs.cuttherope.solve generate`). The files are the source of truth: this module
-only explains and reproduces how they came to be.
+"""The 88 levels as designed: each one written by hand here, with its idea (what it teaches
+or tests), and turned into its level file under levels/ by `deepphy solve --env cuttherope
+make` (the oracle finds the 3-star plan that the file stores; calibrate.py measures it).
+The files are what the game reads; a test checks that they match these designs.
 
-Each box is a list of stages; a stage introduces or mixes mechanics and proposes layouts
-from a seeded generator (`propose`). A proposal becomes a level when:
-0. its elements do not overlap on the screen (`layout_problem`);
-1. doing nothing does not win it (the world run on for RUN_ON_CAP seconds);
-2. the oracle (oracle.search) finds a winning plan within the decision limit that uses the
-   stage's mechanic (the candy rides a bubble, a cushion is tapped, the candy goes through a
-   hat, an active pin catches it, the halves join; spider stages: left alone, a spider takes
-   the candy);
-3. three stars are placed on that plan's path, preferring points away from the straight
-   line to Om Nom (the plan then collects all three; other plans may not);
-4. the plan, replayed through the environment, wins with 3 stars.
-Within a stage the levels are ordered from easy to hard: by how often the reference random
-agent wins (oracle.reference_win_rate), then by the plan's length.
+The boxes follow season 1 of the game (public wikis, /work/shared/notes/games.md):
+Cardboard (ropes, stars, bubbles, automatic ropes, stretched ropes, spikes, several ropes
+cut at once), Fabric (air cushions, spiders), Foil (hooks on tracks, electric sparks, and
+our walls), Magic (hats), Valentine (two candy halves). Each box starts with tutorials for
+its new mechanics and ends with levels that combine them with the earlier ones.
+
+Helpers: `rope` describes a pin and its rope; `make` builds a level, giving every loaded
+rope the rest length that holds the candy still (candies start at rest unless a level's
+idea says otherwise), slack ropes their slack and stretched ropes their stretch.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Callable
-
-import numpy as np
 
 from deepphy.envs.cuttherope import constants as C
-from deepphy.envs.cuttherope.level import (
-    ActivePinSpec,
-    BubbleSpec,
-    CandySpec,
-    CushionSpec,
-    ElectricSpec,
-    HatPairSpec,
-    HatSpec,
-    Level,
-    PinSpec,
-    SpiderSpec,
-    SpikeSpec,
-)
+from deepphy.envs.cuttherope.level import BOXES, Level
 
 Point = tuple[float, float]
-PLACEHOLDER_STARS = [(1.0, 1.0), (2.0, 1.0), (3.0, 1.0)]  # replaced once a plan's path is known
 
 
-@dataclass(frozen=True)
-class Stage:
-    name: str
-    count: int  # levels of the box made by this stage
-    propose: Callable[[np.random.Generator], dict]  # level fields without id and stars
-    mechanic: str | None  # event the winning plan must show (see `uses_mechanic`)
-    min_reference_rate: float = 0.0  # the reference random agent must win at least this often (first levels)
+def rope(x: float, y: float, *, slack: float | None = None, stretch: float | None = None, candy: int = 0,
+         spider: float | None = None, track: dict | None = None, balance: bool = False) -> dict:
+    """A pin at (x, y) and its rope to candy `candy`: loaded (it carries the candy's weight
+    with the other loaded rope), `slack` px longer than the distance (pulling nothing), or
+    `stretch` px shorter (a stretched rope: it contracts and throws the candy); a spider
+    that starts crawling `spider` s after the start; a hook's `track` (TrackSpec fields).
+    `balance`: the candy's only loaded rope, its pin moved (same distance) onto the line
+    along which it must pull to hold the candy still against the stretched ropes."""
+    return {"pos": (float(x), float(y)), "slack": slack, "stretch": stretch, "candy": candy, "spider": spider,
+            "track": track, "balance": balance}
 
 
-# -- geometry helpers ------------------------------------------------------------------------------
-
-
-def _u(rng: np.random.Generator, lo: float, hi: float) -> float:
-    return float(round(rng.uniform(lo, hi)))
-
-
-def _clamp(p: Point, margin: float = 24.0) -> Point:
-    return (float(round(min(max(p[0], margin), C.WIDTH - margin))),
-            float(round(min(max(p[1], margin), C.HEIGHT - margin))))
-
-
-def _pins_above(rng, candy: Point, n: int, *, spread: float = 70.0, dist=(90.0, 190.0), candy_index: int = 0,
-                slack=(1.0, 1.06), spiders: int = 0) -> list[PinSpec]:
-    """`n` pins above the candy at angles within +-spread degrees of vertical, spread apart."""
-    for _ in range(20):  # pins at least MIN_PIN_GAP apart
-        angles = sorted(rng.uniform(-spread, spread, size=n))
-        if all(b - a >= 2 * spread / (n + 2) for a, b in zip(angles, angles[1:])):
-            break
+def make(id: str, title: str, idea: str, *, candies: list, ropes: list[dict] = (), om_nom: Point,
+         stars: list[Point], **elements) -> Level:
+    """A level: `candies` are points (or dicts with "pos" and "velocity"); the ropes' rest
+    lengths come from `rope`'s kind; `elements` are the other Level fields."""
+    specs = [c if isinstance(c, dict) else {"pos": c} for c in candies]
+    halves = len(specs) == 2
     pins = []
-    spider_pins = set(rng.choice(n, size=min(spiders, n), replace=False).tolist()) if spiders else set()
-    for k, a in enumerate(angles):
-        d = rng.uniform(*dist)
-        p = _clamp((candy[0] + d * math.sin(math.radians(a)), candy[1] - d * math.cos(math.radians(a))))
-        length = round(math.dist(p, candy) * rng.uniform(*slack), 1)
-        spider = SpiderSpec(delay=round(float(rng.uniform(0.0, 1.0)), 1)) if k in spider_pins else None
-        pins.append(PinSpec(pos=p, candy=candy_index, length=length, spider=spider))
-    return pins
+    bubbles = [b["pos"] for b in elements.get("bubbles", ())]
+    ropes = [dict(r) for r in ropes]
+    lengths = _rest_lengths(specs, ropes, halves, bubbles)
+    for r, length in zip(ropes, lengths):
+        pin = {"pos": r["pos"], "candy": r["candy"], "length": round(length, 3)}
+        if r["spider"] is not None:
+            pin["spider"] = {"delay": r["spider"]}
+        if r["track"] is not None:
+            pin["track"] = r["track"]
+        pins.append(pin)
+    return Level.model_validate({"id": id, "title": title, "idea": idea, "candies": specs, "pins": pins,
+                                 "om_nom": om_nom, "stars": stars, **elements})
 
 
-def _spike_across(rng, p: Point, q: Point, *, at=(0.35, 0.65), length=(80.0, 170.0), tilt=25.0) -> SpikeSpec:
-    """A row of spikes across the segment p-q, roughly perpendicular to it."""
-    t = rng.uniform(*at)
-    c = (p[0] + (q[0] - p[0]) * t, p[1] + (q[1] - p[1]) * t)
-    heading = math.degrees(math.atan2(q[1] - p[1], q[0] - p[0])) + 90 + rng.uniform(-tilt, tilt)
-    half = rng.uniform(*length) / 2
-    dx, dy = half * math.cos(math.radians(heading)), half * math.sin(math.radians(heading))
-    return SpikeSpec(a=_clamp((c[0] - dx, c[1] - dy), 8), b=_clamp((c[0] + dx, c[1] + dy), 8))
+def _anchor(r: dict) -> Point:
+    """Where a rope's pin is at t = 0 (a hook starts `phase` along its track)."""
+    if not r["track"]:
+        return r["pos"]
+    f = (1.0 - math.cos(2.0 * math.pi * r["track"].get("phase", 0.0))) / 2.0
+    (x0, y0), (x1, y1) = r["pos"], r["track"]["to"]
+    return x0 + (x1 - x0) * f, y0 + (y1 - y0) * f
 
 
-def _angle_to(p: Point, q: Point) -> float:
-    """Screen angle (degrees counter-clockwise from right) from p toward q."""
-    return math.degrees(math.atan2(-(q[1] - p[1]), q[0] - p[0]))
-
-
-def _side_x(rng, x: float, away=(100.0, 260.0)) -> float:
-    """An x some distance from `x`, on whichever side has room."""
-    d = rng.uniform(*away)
-    left, right = x - d, x + d
-    options = [v for v in (left, right) if 50 <= v <= C.WIDTH - 50]
-    return float(round(options[int(rng.integers(len(options)))] if options else min(max(left, 50), C.WIDTH - 50)))
-
-
-# -- box 1: ropes, stars, bubbles, spikes ------------------------------------------------------------
-
-
-def _ropes_first(rng) -> dict:
-    """One rope (sometimes two) right above Om Nom: one cut drops it in within a second."""
-    candy = (_u(rng, 150, 330), _u(rng, 180, 320))
-    n = 1 if rng.random() < 0.7 else 2
-    return dict(candies=[CandySpec(pos=candy)], pins=_pins_above(rng, candy, n, spread=30),
-                om_nom=(_u(rng, candy[0] - 20, candy[0] + 20), _u(rng, candy[1] + 250, candy[1] + 370)))
-
-
-def _ropes(rng) -> dict:
-    candy = (_u(rng, 110, 370), _u(rng, 140, 290))
-    return dict(candies=[CandySpec(pos=candy)], pins=_pins_above(rng, candy, int(rng.integers(2, 4)), spread=75),
-                om_nom=(_side_x(rng, candy[0], (70, 230)), _u(rng, 520, 650)))
-
-
-def _spikes(rng) -> dict:
-    level = _ropes(rng)
-    candy, mouth = level["candies"][0].pos, level["om_nom"]
-    below = (candy[0], mouth[1])
-    spikes = [_spike_across(rng, candy, below, at=(0.45, 0.8))]
-    if rng.random() < 0.6:
-        spikes.append(_spike_across(rng, candy, mouth, at=(0.4, 0.7), length=(60, 120)))
-    level["spikes"] = spikes
-    return level
-
-
-def _bubble_lift(rng, *, cushion: bool = False) -> dict:
-    """The candy hangs low; a bubble waits on its way; Om Nom sits higher up."""
-    candy = (_u(rng, 110, 370), _u(rng, 430, 580))
-    pins = _pins_above(rng, candy, int(rng.integers(1, 3)), spread=60, dist=(100, 200))
-    bubble = _clamp((candy[0] + rng.uniform(-90, 90), candy[1] + rng.uniform(70, 120)), 40)
-    if cushion:
-        mouth = (_side_x(rng, bubble[0], (110, 260)), _u(rng, 130, 400))
-    else:
-        mouth = (_u(rng, bubble[0] - 90, bubble[0] + 90), _u(rng, 120, 380))
-    level = dict(candies=[CandySpec(pos=candy)], pins=pins, bubbles=[BubbleSpec(pos=bubble)], om_nom=_clamp(mouth, 50))
-    if rng.random() < 0.5:  # spikes overhead punish a late pop
-        y = _u(rng, 30, max(40, mouth[1] - 90))
-        x0 = _u(rng, 30, 200)
-        level["spikes"] = [SpikeSpec(a=(x0, y), b=(min(x0 + rng.uniform(150, 300), C.WIDTH - 20), y))]
-    if cushion:
-        side = -1 if mouth[0] > bubble[0] else 1  # the cushion sits on the far side and puffs toward Om Nom
-        pos = _clamp((bubble[0] + side * rng.uniform(50, 140), rng.uniform(mouth[1] + 30, bubble[1] - 40)), 30)
-        level["cushions"] = [CushionSpec(pos=pos, angle=round(_angle_to(pos, (mouth[0], pos[1])) + rng.uniform(-15, 15)))]
-    return level
-
-
-# -- box 2: air cushions, spiders -------------------------------------------------------------------
-
-
-def _swing_cushion(rng) -> dict:
-    """No bubble: a cushion under or beside the hanging candy pushes it while it swings or falls."""
-    level = _ropes(rng)
-    candy, mouth = level["candies"][0].pos, level["om_nom"]
-    pos = _clamp((candy[0] + rng.uniform(-60, 60), candy[1] + rng.uniform(80, 200)), 30)
-    level["cushions"] = [CushionSpec(pos=pos, angle=round(_angle_to(pos, mouth) + rng.uniform(-30, 30)))]
-    level["spikes"] = [_spike_across(rng, candy, (candy[0], mouth[1]), at=(0.6, 0.85), length=(80, 140))]
-    return level
-
-
-def _spiders(rng) -> dict:
-    candy = (_u(rng, 110, 370), _u(rng, 180, 330))
-    n = int(rng.integers(2, 4))
-    pins = _pins_above(rng, candy, n, spread=75, dist=(110, 220), spiders=int(rng.integers(1, n)))
-    level = dict(candies=[CandySpec(pos=candy)], pins=pins, om_nom=(_side_x(rng, candy[0], (60, 220)), _u(rng, 520, 650)))
-    if rng.random() < 0.5:
-        level["spikes"] = [_spike_across(rng, candy, (candy[0], level["om_nom"][1]), at=(0.5, 0.8), length=(60, 130))]
-    return level
-
-
-def _mixed2(rng) -> dict:
-    kind = rng.random()
-    if kind < 0.5:
-        level = _bubble_lift(rng, cushion=True)
-        if rng.random() < 0.6:  # a spider on the first rope
-            level["pins"] = [p.model_copy(update={"spider": SpiderSpec(delay=round(float(rng.uniform(0, 1.5)), 1))})
-                             if k == 0 else p for k, p in enumerate(level["pins"])]
-        return level
-    level = _spiders(rng)
-    candy, mouth = level["candies"][0].pos, level["om_nom"]
-    pos = _clamp((candy[0] + rng.uniform(-80, 80), candy[1] + rng.uniform(90, 220)), 30)
-    level["cushions"] = [CushionSpec(pos=pos, angle=round(_angle_to(pos, mouth) + rng.uniform(-30, 30)))]
-    return level
-
-
-# -- box 3: active pins ------------------------------------------------------------------------------
-
-
-def _active(rng) -> dict:
-    candy = (_u(rng, 90, 390), _u(rng, 110, 230))
-    pins = _pins_above(rng, candy, int(rng.integers(1, 3)), spread=50, dist=(80, 150))
-    n = int(rng.integers(1, 3))
-    actives, last = [], candy
-    for _ in range(n):
-        pos = _clamp((last[0] + rng.choice([-1, 1]) * rng.uniform(40, 160), last[1] + rng.uniform(110, 230)), 50)
-        actives.append(ActivePinSpec(pos=pos, radius=_u(rng, 60, 105)))
-        last = pos
-    mouth = (_side_x(rng, last[0], (120, 280)), _u(rng, min(last[1] + 60, 640), 660))
-    level = dict(candies=[CandySpec(pos=candy)], pins=pins, active_pins=actives, om_nom=_clamp(mouth, 50))
-    if rng.random() < 0.7:  # spikes under the active pins: just dropping does not do
-        y = _u(rng, last[1] + 120, 700)
-        x = last[0]
-        level["spikes"] = [SpikeSpec(a=_clamp((x - rng.uniform(60, 120), y), 8), b=_clamp((x + rng.uniform(60, 120), y), 8))]
-    return level
-
-
-# -- box 4: magic hats -------------------------------------------------------------------------------
-
-
-def _hats(rng, *, extra: bool = False) -> dict:
-    candy = (_u(rng, 90, 390), _u(rng, 110, 260))
-    pins = _pins_above(rng, candy, int(rng.integers(1, 3)), spread=45, dist=(80, 160))
-    entry = _clamp((candy[0] + rng.uniform(-40, 40), candy[1] + rng.uniform(140, 280)), 40)
-    mouth = _clamp((_side_x(rng, entry[0], (130, 300)), _u(rng, 420, 660)), 50)
-    exit_pos = _clamp((rng.uniform(40, 440), rng.uniform(120, mouth[1] - 60)), 40)
-    exit_angle = round(_angle_to(exit_pos, mouth) + rng.uniform(-35, 35))
-    hats = [HatPairSpec(hats=(HatSpec(pos=entry, angle=round(90 + rng.uniform(-25, 25))),
-                              HatSpec(pos=exit_pos, angle=exit_angle)))]
-    level = dict(candies=[CandySpec(pos=candy)], pins=pins, hats=hats, om_nom=mouth)
-    if extra:
-        roll = rng.random()
-        if roll < 0.35:  # spikes between the entry hat and Om Nom
-            level["spikes"] = [_spike_across(rng, entry, mouth, at=(0.35, 0.65), length=(80, 150))]
-        elif roll < 0.6:  # a live barrier on the way out
-            a = _spike_across(rng, exit_pos, mouth, at=(0.4, 0.6), length=(90, 150))
-            period = round(float(rng.uniform(1.5, 3.0)), 1)
-            level["electrics"] = [ElectricSpec(a=a.a, b=a.b, period=period, on=round(period * float(rng.uniform(0.4, 0.6)), 1),
-                                               phase=round(float(rng.uniform(0, period)), 1))]
-        elif roll < 0.8:  # an active pin catches the candy on its way
-            level["active_pins"] = [ActivePinSpec(pos=_clamp(((exit_pos[0] + mouth[0]) / 2, (exit_pos[1] + mouth[1]) / 2 - 40), 40),
-                                                  radius=_u(rng, 55, 90))]
-        else:  # the candy rides a bubble into the entry hat
-            level["bubbles"] = [BubbleSpec(pos=entry)]
-            level["hats"] = [HatPairSpec(hats=(HatSpec(pos=_clamp((entry[0], candy[1] - rng.uniform(40, 90)), 40), angle=270),
-                                               HatSpec(pos=exit_pos, angle=exit_angle)))]
-            level["candies"] = [CandySpec(pos=(candy[0], candy[1] + 60))]
-            level["pins"] = _pins_above(rng, (candy[0], candy[1] + 60), 1, spread=60, dist=(120, 160))
-    return level
-
-
-# -- box 5: two candy halves -------------------------------------------------------------------------
-
-
-def _halves(rng, *, extra: bool = False) -> dict:
-    left = (_u(rng, 70, 200), _u(rng, 130, 300))
-    right = (_u(rng, 280, 410), _u(rng, max(110, left[1] - 70), min(330, left[1] + 70)))
-    pins = (_pins_above(rng, left, int(rng.integers(1, 3)), spread=60, dist=(80, 170), candy_index=0)
-            + _pins_above(rng, right, int(rng.integers(1, 3)), spread=60, dist=(80, 170), candy_index=1))
-    order = rng.permutation(len(pins))  # ids do not tell which half a pin holds
-    pins = [pins[i] for i in order]
-    mouth = (_u(rng, 90, 390), _u(rng, 500, 650))
-    level = dict(candies=[CandySpec(pos=left), CandySpec(pos=right)], pins=pins, om_nom=mouth)
-    if extra:
-        roll = rng.random()
-        mid = ((left[0] + right[0]) / 2, (left[1] + right[1]) / 2)
-        if roll < 0.3:
-            level["spikes"] = [_spike_across(rng, (mid[0], mid[1] + 120), mouth, at=(0.3, 0.6), length=(70, 140))]
-        elif roll < 0.5:
-            level["bubbles"] = [BubbleSpec(pos=_clamp((mid[0] + rng.uniform(-60, 60), mid[1] + rng.uniform(120, 220)), 40))]
-            level["om_nom"] = (_u(rng, 90, 390), _u(rng, 120, 330))
-        elif roll < 0.7:
-            pos = _clamp((mid[0] + rng.uniform(-120, 120), mid[1] + rng.uniform(160, 280)), 30)
-            level["cushions"] = [CushionSpec(pos=pos, angle=round(_angle_to(pos, mouth) + rng.uniform(-30, 30)))]
-            level["om_nom"] = (_side_x(rng, mid[0], (120, 220)), mouth[1])
-        elif roll < 0.85:
-            level["pins"] = [p.model_copy(update={"spider": SpiderSpec(delay=round(float(rng.uniform(0.5, 1.5)), 1))})
-                             if k == 0 else p for k, p in enumerate(pins)]
+def _rest_lengths(candies: list[dict], ropes: list[dict], halves: bool, bubbles: list[Point]) -> list[float]:
+    """Each rope's rest length: slack and stretched ropes by their numbers; the loaded ropes
+    of a candy (one or two) stretched just enough that, with the stretched ropes' pull, they
+    hold it still. A candy that starts inside a bubble is lifted instead of pulled down."""
+    lengths = [0.0] * len(ropes)
+    for ci, spec in enumerate(candies):
+        cx, cy = spec["pos"]
+        weight = (C.HALF_MASS if halves else C.CANDY_MASS) / C.CANDY_MASS  # downward, in whole-candy weights
+        if any(math.dist(b, (cx, cy)) < C.BUBBLE_CAPTURE for b in bubbles):
+            weight *= -C.BUBBLE_DRAG * C.BUBBLE_RISE_SPEED / C.GRAVITY  # the bubble's lift
+        need_x, need_y = 0.0, -weight  # what the loaded ropes must pull (in weights)
+        loaded = []
+        for k, r in enumerate(ropes):
+            if r["candy"] != ci:
+                continue
+            ax, ay = _anchor(r)
+            d = math.dist((ax, ay), (cx, cy))
+            ux, uy = (ax - cx) / d, (ay - cy) / d
+            if r["slack"] is not None:
+                lengths[k] = d + r["slack"]
+            elif r["stretch"] is not None:
+                lengths[k] = d - r["stretch"]
+                pull = r["stretch"] * C.ROPE_STIFFNESS
+                need_x, need_y = need_x - pull * ux, need_y - pull * uy
+            else:
+                loaded.append((k, d, ux, uy))
+        if len(loaded) == 1 and ropes[loaded[0][0]]["balance"]:
+            k, d, _, _ = loaded[0]
+            n = math.hypot(need_x, need_y)
+            ropes[k]["pos"] = (round(cx + d * need_x / n, 3), round(cy + d * need_y / n, 3))
+            loaded = [(k, d, need_x / n, need_y / n)]
+        if not loaded:
+            continue
+        if len(loaded) == 1:
+            k, d, ux, uy = loaded[0]
+            tension = math.hypot(need_x, need_y)
+            if tension > 0 and abs(ux * need_y - uy * need_x) > 1e-6 * tension or ux * need_x + uy * need_y < 0:
+                raise ValueError(f"candy {ci}: its only loaded rope must pull straight against the other forces")
+            tensions = [tension]
+        elif len(loaded) == 2:
+            (_, _, ax_, ay_), (_, _, bx, by) = loaded
+            det = ax_ * by - bx * ay_
+            if abs(det) < 1e-9:
+                raise ValueError(f"candy {ci}: its two loaded ropes are parallel")
+            tensions = [(need_x * by - bx * need_y) / det, (ax_ * need_y - need_x * ay_) / det]
+            if min(tensions) < 0:
+                raise ValueError(f"candy {ci}: its two loaded ropes cannot hold it still there")
         else:
-            entry = _clamp((mid[0] + rng.uniform(-40, 40), mid[1] + rng.uniform(170, 260)), 40)
-            exit_pos = _clamp((_side_x(rng, entry[0], (150, 250)), rng.uniform(150, 350)), 40)
-            level["hats"] = [HatPairSpec(hats=(HatSpec(pos=entry, angle=90), HatSpec(pos=exit_pos, angle=270)))]
-            level["om_nom"] = (exit_pos[0] + rng.uniform(-40, 40), _u(rng, 520, 650))
-    return level
+            raise ValueError(f"candy {ci}: give all but two of its ropes a slack or a stretch")
+        for (k, d, _, _), tension in zip(loaded, tensions):
+            lengths[k] = d - tension / C.ROPE_STIFFNESS
+    return lengths
 
 
-# -- the boxes ---------------------------------------------------------------------------------------
-
-BOX_STAGES: dict[int, list[Stage]] = {
-    1: [Stage("first ropes", 3, _ropes_first, None, min_reference_rate=0.5),
-        Stage("ropes and swings", 6, _ropes, None),
-        Stage("spikes", 6, _spikes, None),
-        Stage("bubbles", 9, lambda rng: _bubble_lift(rng), "bubble")],
-    2: [Stage("air cushions", 8, lambda rng: _bubble_lift(rng, cushion=True), "cushion"),
-        Stage("cushions without bubbles", 4, _swing_cushion, "cushion"),
-        Stage("spiders", 6, _spiders, "spider"),
-        Stage("cushions, spiders, bubbles", 5, _mixed2, "cushion")],
-    3: [Stage("active pins", 7, _active, "active")],
-    4: [Stage("magic hats", 6, lambda rng: _hats(rng), "hat"),
-        Stage("hats with hazards, active pins, bubbles", 9, lambda rng: _hats(rng, extra=True), "hat")],
-    5: [Stage("two halves", 7, lambda rng: _halves(rng), "join"),
-        Stage("halves with everything", 12, lambda rng: _halves(rng, extra=True), "join")],
-}
+def spikes(a: Point, b: Point) -> dict:
+    return {"a": a, "b": b}
 
 
-def proposal(box: int, stage: Stage, rng: np.random.Generator) -> Level:
-    """A layout of the stage; ValueError when its elements would overlap on the screen."""
-    fields = stage.propose(rng)
-    level = Level(id=f"b{box}_l01", title=stage.name, stars=PLACEHOLDER_STARS, **fields)
-    problem = layout_problem(level)
-    if problem:
-        raise ValueError(problem)
-    return level
+def wall(a: Point, b: Point) -> dict:
+    return {"a": a, "b": b}
 
 
-def _points(level: Level) -> list[tuple[str, Point]]:
-    return ([("candy", c.pos) for c in level.candies] + [("pin", p.pos) for p in level.pins]
-            + [("active pin", a.pos) for a in level.active_pins] + [("bubble", b.pos) for b in level.bubbles]
-            + [("cushion", c.pos) for c in level.cushions] + [("hat", h.pos) for pair in level.hats for h in pair.hats])
+# -- box 1: Cardboard ------------------------------------------------------------------------------
+
+BOX1: list[Level] = [
+    make("b1_l01", "One rope",
+         "Cut the rope and the candy falls straight to Om Nom, through the three stars.",
+         candies=[(240, 200)], ropes=[rope(240, 80)], om_nom=(240, 600),
+         stars=[(240, 300), (240, 390), (240, 480)]),
+    make("b1_l02", "Which rope?",
+         "Two ropes hold the candy: cut the one on the left and the other swings it into Om Nom; cut the "
+         "other and it swings away from him.",
+         candies=[(240, 280)], ropes=[rope(80, 120), rope(400, 120)], om_nom=(400, 398),
+         stars=[(284, 314), (319, 331), (357, 342)]),
+    make("b1_l03", "A slack rope catches",
+         "Cut the short rope: the candy falls until the long slack rope catches it, and swings on it to Om Nom.",
+         candies=[(150, 200)], ropes=[rope(150, 100), rope(330, 140, slack=120)], om_nom=(330, 505),
+         stars=[(150, 300), (199, 421), (266, 443)]),
+    make("b1_l04", "Let go on the swing",
+         "Cut the rope above the candy and it swings on the other; let it go when the swing throws it toward Om Nom.",
+         candies=[(80, 200)], ropes=[rope(80, 100), rope(200, 80, slack=0)], om_nom=(400, 450),
+         stars=[(140, 245), (290, 290), (350, 360)]),
+    make("b1_l05", "Up with a bubble",
+         "Cut the rope: the candy drops into the bubble, which carries it up through the stars into Om Nom.",
+         candies=[(240, 500)], ropes=[rope(240, 380)], bubbles=[{"pos": (240, 590)}], om_nom=(240, 100),
+         stars=[(240, 340), (240, 260), (240, 190)]),
+    make("b1_l06", "Steer the bubble",
+         "The candy starts in a bubble held down by two ropes. Cut one and the bubble drifts over the other pin; "
+         "cut the second when the bubble is under Om Nom and it rises straight to him.",
+         candies=[(140, 520)], bubbles=[{"pos": (140, 520)}], ropes=[rope(60, 640), rope(340, 660)],
+         om_nom=(330, 100), stars=[(215, 458), (300, 360), (310, 230)]),
+    make("b1_l07", "Pop it over Om Nom",
+         "Om Nom waits below, the stars are above: let the bubble lift the candy through them, then pop it and the "
+         "candy falls all the way down to him.",
+         candies=[(170, 260)], ropes=[rope(170, 150)], bubbles=[{"pos": (170, 360)}], om_nom=(170, 650),
+         stars=[(170, 205), (170, 100), (195, 520)]),
+    make("b1_l08", "Throw it into the bubble",
+         "Cut the rope above the candy and it swings on the other; let go so that it flies into the bubble, which "
+         "carries it up to Om Nom.",
+         candies=[(120, 380)], ropes=[rope(120, 260), rope(220, 207, slack=0)], bubbles=[{"pos": (330, 515)}],
+         om_nom=(380, 110), stars=[(175, 400), (280, 470), (380, 300)]),
+    make("b1_l09", "The rope steers the bubble",
+         "The bubble lifts the candy straight up until the slack rope comes taut; then the rope turns it, floating, "
+         "around its pin to Om Nom.",
+         candies=[(90, 300)], ropes=[rope(90, 190), rope(230, 300, slack=30)], bubbles=[{"pos": (90, 400)}],
+         om_nom=(250, 120), stars=[(90, 235), (120, 150), (180, 120)]),
+    make("b1_l10", "An automatic rope",
+         "Cut the rope: as the falling candy enters the dashed circle, the automatic rope grabs it and swings it "
+         "over to Om Nom.",
+         candies=[(110, 160)], ropes=[rope(110, 60)], active_pins=[{"pos": (200, 400), "radius": 110}],
+         om_nom=(320, 500), stars=[(110, 270), (170, 500), (260, 500)]),
+    make("b1_l11", "Stop the bubble",
+         "The bubble would carry the candy off the top; the automatic rope catches it on the way and holds it "
+         "floating. Pop the bubble then, and the rope swings the candy down to Om Nom.",
+         candies=[(100, 560)], ropes=[rope(100, 460)], bubbles=[{"pos": (100, 640)}],
+         active_pins=[{"pos": (200, 250), "radius": 120}], om_nom=(345, 300), stars=[(100, 380), (130, 172), (250, 390)]),
+    make("b1_l12", "A stretched rope",
+         "Two red ropes pull against each other. Cut the lower one: the upper one contracts and throws the candy up "
+         "past its pin, and swings it round into Om Nom.",
+         candies=[(140, 520)], ropes=[rope(40, 627, balance=True), rope(280, 380, stretch=35)], om_nom=(430, 380),
+         stars=[(220, 440), (300, 385), (370, 375)]),
+    make("b1_l13", "Slingshot to a rope",
+         "Cut the lower rope and the red rope slings the candy up; let it go at the top of its flight and the "
+         "automatic rope catches it and swings it to Om Nom.",
+         candies=[(100, 600)], ropes=[rope(20, 680, balance=True), rope(160, 420, stretch=30)],
+         active_pins=[{"pos": (340, 420), "radius": 75}], om_nom=(430, 610), stars=[(150, 470), (230, 400), (400, 500)]),
+    make("b1_l14", "Tug of war",
+         "Two stretched ropes pull the candy both ways. Cut one and the other throws the candy past its pin; the "
+         "right one's swing brings it round to Om Nom, the left one's away from him.",
+         candies=[(240, 380)], ropes=[rope(60, 380, stretch=25), rope(420, 380, balance=True)],
+         om_nom=(300, 570), stars=[(320, 375), (400, 430), (380, 560)]),
+    make("b1_l15", "Throw it into the bubble",
+         "The stretched rope throws the candy sideways; let go as it passes the bubble's height and it floats up to "
+         "Om Nom.",
+         candies=[(380, 560)], ropes=[rope(470, 640, balance=True), rope(250, 520, stretch=30)],
+         bubbles=[{"pos": (160, 545)}], om_nom=(170, 120), stars=[(300, 530), (230, 560), (180, 300)]),
+    make("b1_l16", "Swing out, let go",
+         "Cut the left rope: the right one swings the candy out to the right; let go at the far end of the swing and "
+         "it drops to Om Nom. Cut the right rope first and the swing goes the wrong way.",
+         candies=[(210, 270)], ropes=[rope(120, 150), rope(300, 150)], om_nom=(420, 520),
+         stars=[(280, 320), (350, 300), (410, 400)]),
+    make("b1_l17", "Under the spikes",
+         "Spikes block the straight drop to Om Nom. Cut the left rope: the right one swings the candy out and back; "
+         "let go as it swings back low, and it flies under the spikes into Om Nom.",
+         candies=[(200, 250)], ropes=[rope(120, 150), rope(330, 120)], spikes=[spikes((110, 310), (205, 310))],
+         om_nom=(180, 440), stars=[(290, 305), (330, 330), (250, 370)]),
+    make("b1_l18", "Throw over the spikes",
+         "A row of spikes stands between the candy and Om Nom. The red rope can throw the candy over it, if you let "
+         "go at the right moment.",
+         candies=[(90, 500)], ropes=[rope(20, 560, balance=True), rope(190, 380, stretch=40)],
+         spikes=[spikes((290, 520), (290, 700))], om_nom=(390, 640), stars=[(150, 440), (250, 360), (350, 520)]),
+    make("b1_l19", "Not that rope",
+         "The automatic rope is right under the candy: it grabs it as it falls and swings it round into the spikes. "
+         "Take that rope away (before or right after it grabs) and the candy falls straight to Om Nom.",
+         candies=[(300, 160)], ropes=[rope(300, 60)], active_pins=[{"pos": (240, 240), "radius": 90}],
+         spikes=[spikes((110, 210), (150, 300))], om_nom=(300, 620), stars=[(300, 280), (300, 380), (300, 500)]),
+    make("b1_l20", "Together",
+         "Cut either rope alone and the other swings the candy into spikes. Cut both in one swipe, cut_pin(1, 2), "
+         "and it drops straight to Om Nom.",
+         candies=[(240, 300)], ropes=[rope(100, 180), rope(380, 180)],
+         spikes=[spikes((60, 330), (60, 560)), spikes((420, 330), (420, 560))], om_nom=(240, 620),
+         stars=[(240, 380), (240, 450), (240, 530)]),
+    make("b1_l21", "Twin slingshot",
+         "Two red ropes pull the candy up against the rope below. Cut the lower one and they throw it up through a "
+         "star; let both go in one swipe at once and it falls straight back, through the others, to Om Nom.",
+         candies=[(240, 380)], ropes=[rope(120, 260, stretch=15), rope(360, 260, stretch=15), rope(240, 560, balance=True)],
+         om_nom=(240, 650), stars=[(240, 300), (240, 480), (200, 590)]),
+    make("b1_l22", "Two now, one later",
+         "Three ropes: cut the two short ones and the long one catches the candy and swings it; let go of it when "
+         "the swing is over Om Nom.",
+         candies=[(240, 300)], ropes=[rope(140, 200), rope(340, 200), rope(400, 100, slack=20)],
+         om_nom=(340, 480), stars=[(260, 380), (330, 400), (290, 345)]),
+    make("b1_l23", "Up, across, down",
+         "Let the bubble take the candy up into the automatic rope's reach, pop it, and let go of the automatic rope "
+         "when its swing points at Om Nom.",
+         candies=[(80, 540)], ropes=[rope(80, 440)], bubbles=[{"pos": (80, 630)}],
+         active_pins=[{"pos": (200, 260), "radius": 130}],
+         om_nom=(400, 400), stars=[(80, 330), (200, 420), (320, 380)]),
+    make("b1_l24", "Cardboard finale",
+         "A stretched rope, a bubble and an automatic rope: sling the candy into the bubble, let it rise to the "
+         "automatic rope, pop it, and let go of the automatic rope toward Om Nom.",
+         candies=[(400, 580)], ropes=[rope(470, 660, balance=True), rope(300, 520, stretch=30)],
+         bubbles=[{"pos": (190, 520)}], active_pins=[{"pos": (170, 230), "radius": 100}], om_nom=(320, 320),
+         stars=[(250, 540), (190, 360), (260, 240)]),
+]
+
+# -- box 2: Fabric ----------------------------------------------------------------------------------
 
 
-def layout_problem(level: Level) -> str | None:
-    """Why the layout would look cluttered (None when it is clear): elements on top of each
-    other, or on Om Nom, or spikes on an element."""
-    points = _points(level)
-    for i, (a, p) in enumerate(points):
-        if math.dist(p, level.om_nom) < 85:
-            return f"{a} on Om Nom"
-        for b, q in points[i + 1:]:
-            if math.dist(p, q) < 45:
-                return f"{a} on {b}"
-    for s in level.spikes + level.electrics:
-        for a, p in points:
-            if _point_segment(p, s.a, s.b) < 45:
-                return f"spikes on {a}"
-        if _point_segment(level.om_nom, s.a, s.b) < 75:
-            return "spikes on Om Nom"
-    return None
+def cushion(x: float, y: float, angle: float) -> dict:
+    return {"pos": (float(x), float(y)), "angle": float(angle)}
 
 
-def _point_segment(p: Point, a: Point, b: Point) -> float:
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    n = dx * dx + dy * dy
-    t = 0.0 if n == 0 else max(0.0, min(1.0, ((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / n))
-    return math.hypot(p[0] - a[0] - t * dx, p[1] - a[1] - t * dy)
+BOX2: list[Level] = [
+    make("b2_l01", "A puff of air",
+         "Cut the rope: the candy drops into the bubble and rises past the air cushion. Three puffs while it is in "
+         "front of the cushion push the bubble over, under Om Nom.",
+         candies=[(120, 520)], ropes=[rope(120, 420)], bubbles=[{"pos": (120, 600)}], cushions=[cushion(40, 330, 0)],
+         om_nom=(300, 100), stars=[(120, 400), (215, 335), (280, 210)]),
+    make("b2_l02", "Puff the swing",
+         "Puff the hanging candy: enough puffs and it swings up and round to Om Nom, through the stars; too few and "
+         "it swings back.",
+         candies=[(200, 330)], ropes=[rope(200, 170)], cushions=[cushion(70, 330, 0)],
+         om_nom=(420, 165), stars=[(290, 310), (320, 215), (355, 165)]),
+    make("b2_l03", "How many puffs?",
+         "The candy starts in a bubble, tied down. Cut it loose: spikes hang over its way up. Push the bubble left "
+         "with the cushion, far enough to pass them, to Om Nom.",
+         candies=[(330, 560)], bubbles=[{"pos": (330, 560)}], ropes=[rope(330, 660)],
+         cushions=[cushion(440, 380, 180)], spikes=[spikes((150, 150), (440, 150))], om_nom=(90, 80),
+         stars=[(330, 440), (200, 330), (110, 220)]),
+    make("b2_l04", "Puff it to the rope",
+         "Puff the hanging candy up into the automatic rope's circle; once that rope has it, cut the first one and "
+         "the new rope swings the candy to Om Nom.",
+         candies=[(140, 420)], ropes=[rope(140, 300)], cushions=[cushion(40, 420, 0)],
+         active_pins=[{"pos": (300, 260), "radius": 90}], om_nom=(380, 500), stars=[(200, 340), (260, 200), (330, 420)]),
+    make("b2_l05", "Right, then left",
+         "Two cushions on either side of the bubble's way up: the lower one pushes it right, past the spikes, the "
+         "upper one back left to Om Nom.",
+         candies=[(160, 600)], bubbles=[{"pos": (160, 600)}], ropes=[rope(160, 690)],
+         cushions=[cushion(40, 470, 0), cushion(450, 230, 180)], spikes=[spikes((60, 340), (250, 340))],
+         om_nom=(200, 70), stars=[(260, 440), (330, 300), (250, 140)]),
+    make("b2_l06", "Puff the throw",
+         "The red rope throws the candy up toward Om Nom, but not far enough: a puff from below, as the candy "
+         "passes, carries it the rest of the way.",
+         candies=[(80, 600)], ropes=[rope(20, 690, balance=True), rope(180, 460, stretch=30)],
+         cushions=[cushion(300, 620, 90)], om_nom=(380, 150), stars=[(150, 500), (280, 380), (320, 250)]),
+    make("b2_l07", "Puff, then pop",
+         "The candy rises in a bubble; push the bubble over with the cushion until it is above Om Nom, then pop "
+         "it: he is below, and the bubble would carry the candy away.",
+         candies=[(100, 560)], bubbles=[{"pos": (100, 560)}], ropes=[rope(100, 660)], cushions=[cushion(20, 300, 0)],
+         om_nom=(330, 620), stars=[(100, 400), (200, 250), (320, 160)]),
+    make("b2_l08", "Puff it into the bubble",
+         "Puff the hanging candy so that it swings into the bubble; the bubble lifts it on its rope, and cutting the "
+         "rope lets it rise to Om Nom.",
+         candies=[(160, 420)], ropes=[rope(160, 260)], cushions=[cushion(30, 420, 0)], bubbles=[{"pos": (300, 360)}],
+         om_nom=(330, 80), stars=[(240, 420), (320, 270), (340, 170)]),
+    make("b2_l09", "A spider",
+         "A spider crawls down the rope that holds the candy. Cut that rope before it arrives: the slack rope "
+         "catches the candy and swings it to Om Nom.",
+         candies=[(150, 200)], ropes=[rope(150, 80, spider=0.5), rope(330, 140, slack=120)], om_nom=(330, 505),
+         stars=[(150, 300), (199, 421), (266, 443)]),
+    make("b2_l10", "Race the spider",
+         "A spider comes down the rope on the left: cut it before it arrives, and the candy swings on the other "
+         "rope; let go of that one at the right point of the swing.",
+         candies=[(220, 260)], ropes=[rope(100, 120, spider=0.0), rope(360, 120)], om_nom=(420, 480),
+         stars=[(300, 300), (380, 300), (430, 340)]),
+    make("b2_l11", "Before the spider, after the swing",
+         "A spider comes down one of the two short ropes: cut both before it arrives, and the long slack rope catches "
+         "the candy; let go of it over Om Nom.",
+         candies=[(240, 240)], ropes=[rope(160, 140, spider=0.0), rope(320, 140), rope(60, 100, slack=60)],
+         om_nom=(90, 560), stars=[(240, 330), (170, 420), (110, 470)]),
+    make("b2_l12", "Escape upward",
+         "A spider is coming down the rope: cut it, and the bubble under the candy carries it up out of reach, "
+         "to Om Nom.",
+         candies=[(300, 480)], ropes=[rope(300, 330, spider=0.0)], bubbles=[{"pos": (300, 570)}], om_nom=(300, 90),
+         stars=[(300, 380), (300, 280), (300, 180)]),
+    make("b2_l13", "Puff away from the spider",
+         "A spider comes down the only rope. Puff the candy into a swing, and cut the rope at the top of the swing, "
+         "over Om Nom, before the spider arrives.",
+         candies=[(140, 360)], ropes=[rope(140, 200, spider=1.0)], cushions=[cushion(30, 360, 0)],
+         om_nom=(300, 470), stars=[(220, 360), (290, 280), (300, 390)]),
+    make("b2_l14", "Spider on a red rope",
+         "A spider starts down the stretched rope. Cut the rope below and the red rope throws the candy; cut the red "
+         "rope in flight, before the spider arrives, and the candy sails on to Om Nom.",
+         candies=[(120, 560)], ropes=[rope(30, 660, balance=True), rope(230, 400, stretch=35, spider=0.0)],
+         om_nom=(420, 350), stars=[(180, 480), (280, 380), (350, 330)]),
+    make("b2_l15", "Spider and the automatic rope",
+         "Cut the spider's rope: the candy falls, the automatic rope catches it and swings it round. Let go of that "
+         "rope when the candy flies toward Om Nom.",
+         candies=[(120, 150)], ropes=[rope(120, 50, spider=0.0)], active_pins=[{"pos": (200, 360), "radius": 110}],
+         om_nom=(305, 570), stars=[(120, 280), (250, 480), (300, 430)]),
+    make("b2_l16", "Cut loose before the spider",
+         "A spider climbs the rope that ties the bubble down. Cut it loose in time, puff the rising bubble over, "
+         "and pop it above Om Nom.",
+         candies=[(90, 560)], bubbles=[{"pos": (90, 560)}], ropes=[rope(90, 660, spider=0.0)],
+         cushions=[cushion(20, 330, 0)], om_nom=(265, 650), stars=[(90, 450), (180, 330), (265, 250)]),
+    make("b2_l17", "Through the gap",
+         "Spikes hang over the bubble's way up, with one gap, under Om Nom. Puff the rising bubble over by just the "
+         "right amount: too few puffs or too many and it rises into the spikes.",
+         candies=[(90, 560)], bubbles=[{"pos": (90, 560)}], ropes=[rope(90, 660)], cushions=[cushion(20, 330, 0)],
+         spikes=[spikes((30, 150), (190, 150)), spikes((310, 150), (460, 150))], om_nom=(250, 60),
+         stars=[(90, 420), (180, 300), (250, 200)]),
+    make("b2_l18", "Cut two, before the spider",
+         "Two ropes hold the candy right above Om Nom, a spider on one of them: cut both in one swipe and the candy "
+         "drops straight through the stars; one at a time, it swings off the line.",
+         candies=[(240, 280)], ropes=[rope(120, 160, spider=0.5), rope(360, 160)], om_nom=(240, 630),
+         stars=[(240, 380), (240, 460), (240, 540)]),
+    make("b2_l19", "Swing over the spikes",
+         "Puff the candy into a bigger swing than its rope alone would give, and cut it at the top: it clears the "
+         "spikes and lands in Om Nom.",
+         candies=[(130, 300)], ropes=[rope(130, 140), rope(240, 160, slack=0)], cushions=[cushion(30, 420, 30)],
+         spikes=[spikes((230, 420), (330, 420))], om_nom=(420, 560), stars=[(200, 330), (300, 280), (380, 400)]),
+    make("b2_l20", "Spider, bubble, cushion",
+         "A spider comes down the rope that holds the bubble down. Cut it in time; the bubble rises, and the cushion "
+         "pushes it over to Om Nom.",
+         candies=[(150, 500)], bubbles=[{"pos": (150, 500)}], ropes=[rope(150, 640, spider=1.0)],
+         cushions=[cushion(40, 250, 0)], om_nom=(360, 80), stars=[(150, 380), (250, 230), (340, 170)]),
+    make("b2_l21", "Throw into the bubble, puff it over",
+         "The red rope throws the candy into the bubble; then puff the bubble across to Om Nom.",
+         candies=[(380, 600)], ropes=[rope(460, 690, balance=True), rope(260, 520, stretch=30)],
+         bubbles=[{"pos": (170, 540)}], cushions=[cushion(30, 300, 0)], om_nom=(330, 90),
+         stars=[(300, 540), (170, 400), (280, 220)]),
+    make("b2_l22", "Puff, catch, swing",
+         "Puff the candy into the automatic rope's circle, cut its first rope, and let the automatic rope swing it "
+         "round to Om Nom.",
+         candies=[(120, 380)], ropes=[rope(120, 260)], cushions=[cushion(20, 380, 0)],
+         active_pins=[{"pos": (280, 260), "radius": 90}],
+         om_nom=(420, 440), stars=[(200, 380), (330, 250), (380, 300)]),
+    make("b2_l23", "Fabric finale",
+         "A spider, a bubble, a cushion and spikes: beat the spider, ride the bubble, puff it clear of the spikes and "
+         "pop it over Om Nom.",
+         candies=[(380, 470)], ropes=[rope(380, 330, spider=0.5)], bubbles=[{"pos": (380, 560)}],
+         cushions=[cushion(460, 300, 180)], spikes=[spikes((300, 150), (460, 150))],
+         om_nom=(130, 600), stars=[(380, 400), (260, 260), (140, 200)]),
+]
+
+# -- box 3: Foil ------------------------------------------------------------------------------------
 
 
-def uses_mechanic(mechanic: str | None, events: list[str], plan_texts: list[str], no_action_loss: str) -> bool:
-    """Does the winning plan use the stage's mechanic? (events: what happened while it played)."""
-    if mechanic is None:
-        return True
-    if mechanic == "bubble":
-        return any("bubble" in e and "captured" in e for e in events)
-    if mechanic == "cushion":
-        return any(t.startswith("tap_air_cushion") for t in plan_texts)
-    if mechanic == "hat":
-        return any("magic hat" in e for e in events)
-    if mechanic == "active":
-        return any("active pin" in e and "attached" in e for e in events)
-    if mechanic == "join":
-        return any("joined" in e for e in events)
-    if mechanic == "spider":
-        return "spider" in no_action_loss
-    raise ValueError(mechanic)
+def track(x: float, y: float, period: float, phase: float = 0.0) -> dict:
+    """A hook's track to (x, y): one round trip every `period` s, starting `phase` of the way round."""
+    return {"to": (float(x), float(y)), "period": float(period), "phase": float(phase)}
 
 
-def place_stars(rng, level: Level, path: list[Point], count: int = 3) -> list[Point] | None:
-    """Three points on the plan's path: away from its start and from Om Nom, apart from each
-    other and from the level's elements, preferring points off the straight line to Om Nom."""
-    if len(path) < 10:
-        return None
-    start, mouth = path[0], level.om_nom
-    blocked = [p for name, p in _points(level) if name != "candy"]
-    candies = [c.pos for c in level.candies]
-    candidates = []
-    for k, p in enumerate(path):
-        if not (30 <= p[0] <= C.WIDTH - 30 and 30 <= p[1] <= C.HEIGHT - 30):
-            continue
-        if any(math.dist(p, c) < 60 for c in candies) or math.dist(p, mouth) < 80:
-            continue
-        if any(math.dist(p, b) < 50 for b in blocked):
-            continue
-        if any(_point_segment(p, s.a, s.b) < 40 for s in level.spikes + level.electrics):
-            continue
-        off_line = _distance_to_line(p, start, mouth)
-        candidates.append((off_line + rng.uniform(0, 60), k, p))
-    candidates.sort(reverse=True)
-    chosen: list[tuple[int, Point]] = []
-    for _, k, p in candidates:
-        if all(math.dist(p, q) >= 70 for _, q in chosen):
-            chosen.append((k, p))
-        if len(chosen) == count:
-            break
-    if len(chosen) < count:
-        return None
-    return [(float(round(p[0])), float(round(p[1]))) for _, p in sorted(chosen)]
+def electric(a: Point, b: Point, period: float, on: float, phase: float = 0.0) -> dict:
+    return {"a": a, "b": b, "period": period, "on": on, "phase": phase}
 
 
-def _distance_to_line(p: Point, a: Point, b: Point) -> float:
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    n = math.hypot(dx, dy)
-    if n == 0:
-        return math.dist(p, a)
-    return abs((p[0] - a[0]) * dy - (p[1] - a[1]) * dx) / n
+BOX3: list[Level] = [
+    make("b3_l01", "A hook on a track",
+         "The candy hangs from a hook that slides along its track by itself. Cut the rope when the candy is on its "
+         "way over Om Nom.",
+         candies=[(80, 280)], ropes=[rope(80, 130, track=track(400, 130, 8.0))], om_nom=(320, 620),
+         stars=[(200, 300), (300, 420), (310, 520)]),
+    make("b3_l02", "Sparks",
+         "An electric barrier sparks on and off between the candy and Om Nom. Cut so that the candy passes it while "
+         "it is off.",
+         candies=[(240, 160)], ropes=[rope(240, 60)], electrics=[electric((140, 400), (340, 400), 2.0, 1.2)],
+         om_nom=(240, 620), stars=[(240, 280), (240, 470), (240, 540)]),
+    make("b3_l03", "A ramp",
+         "Drop the candy on the metal ramp and it rolls down, through the stars, into Om Nom. Cut the wrong rope "
+         "first and it swings away from the ramp.",
+         candies=[(140, 240)], ropes=[rope(140, 120), rope(40, 140)], walls=[wall((110, 400), (340, 490))],
+         om_nom=(400, 550), stars=[(140, 330), (210, 400), (300, 440)]),
+    make("b3_l04", "Hook and sparks",
+         "The hook carries the candy back and forth above a barrier that sparks on and off. Cut when the candy is "
+         "over Om Nom and the barrier will be off as it passes.",
+         candies=[(100, 220)], ropes=[rope(100, 100, track=track(380, 100, 8.0))],
+         electrics=[electric((200, 420), (460, 420), 1.6, 0.8)], om_nom=(360, 560), stars=[(240, 230), (330, 470), (330, 350)]),
+    make("b3_l05", "Hook and anchor",
+         "The hook carries the candy along; a slack rope from a fixed pin would swing it back. Cut both in one swipe "
+         "when the candy is where its fall ends in Om Nom.",
+         candies=[(100, 300)], ropes=[rope(100, 150, track=track(250, 150, 4.0)),
+                                       rope(380, 120, slack=40)],
+         om_nom=(400, 620), stars=[(170, 320), (300, 330), (390, 460)]),
+    make("b3_l06", "Bounce off the wall",
+         "Let go of the swing so that the candy hits the wall and bounces back down into Om Nom, who sits where no "
+         "straight throw reaches.",
+         candies=[(100, 300)], ropes=[rope(100, 180), rope(220, 180, slack=0)], walls=[wall((420, 150), (420, 450))],
+         om_nom=(320, 540), stars=[(200, 360), (350, 330), (360, 450)]),
+    make("b3_l07", "Foil finale",
+         "A hook, sparks and a ramp: let go of the moving candy when it will pass the barrier while it is off and "
+         "land high on the ramp, which rolls it through the stars to Om Nom.",
+         candies=[(100, 200)], ropes=[rope(100, 80, track=track(380, 80, 8.0))],
+         electrics=[electric((130, 320), (360, 320), 2.0, 1.0)], walls=[wall((130, 450), (380, 540))],
+         om_nom=(440, 590), stars=[(180, 390), (260, 450), (350, 490)]),
+]
+
+# -- box 4: Magic -----------------------------------------------------------------------------------
+
+
+def hats(a: Point, a_angle: float, b: Point, b_angle: float) -> dict:
+    """A pair of magic hats: openings at a and b, facing the given angles (90: up, 270: down)."""
+    return {"hats": ({"pos": a, "angle": a_angle}, {"pos": b, "angle": b_angle})}
+
+
+BOX4: list[Level] = [
+    make("b4_l01", "A magic hat",
+         "Drop the candy into the hat: it comes out of the other hat of the same colour, across the screen, and falls "
+         "on to Om Nom.",
+         candies=[(100, 160)], ropes=[rope(100, 60)], hats=[hats((100, 420), 90, (360, 200), 270)], om_nom=(360, 600),
+         stars=[(100, 300), (360, 330), (360, 460)]),
+    make("b4_l02", "Out sideways",
+         "Om Nom sits under a row of spikes. Drop the candy straight into the hat (cut the slack rope first, or it "
+         "swings the candy): the second hat faces sideways and shoots it, as fast as it fell, under the spikes to "
+         "him.",
+         candies=[(80, 150)], ropes=[rope(80, 50), rope(200, 70, slack=10)], hats=[hats((80, 560), 90, (160, 300), 0)],
+         spikes=[spikes((290, 265), (470, 265))], om_nom=(450, 335),
+         stars=[(80, 300), (300, 305), (390, 322)]),
+    make("b4_l03", "As fast as it went in",
+         "The exit hat points up at Om Nom, high above it. The candy leaves as fast as it entered: let the bubble "
+         "take it high before you pop it, so that it falls fast enough.",
+         candies=[(100, 560)], bubbles=[{"pos": (100, 560)}], ropes=[rope(100, 660)],
+         hats=[hats((100, 640), 90, (360, 620), 90)], om_nom=(360, 90), stars=[(100, 330), (100, 200), (360, 330)]),
+    make("b4_l04", "Two pairs",
+         "Two pairs of hats, told apart by their colours. Drop the candy straight into the first (both ropes in one "
+         "swipe): it throws the candy into the second, and the second to Om Nom.",
+         candies=[(240, 120)], ropes=[rope(160, 40), rope(320, 40)], hats=[hats((240, 330), 90, (80, 200), 0), hats((300, 235), 180, (420, 120), 270)],
+         om_nom=(420, 600), stars=[(240, 230), (200, 212), (420, 330)]),
+    make("b4_l05", "Up into the hat",
+         "A bubble carries the candy up into a hat that opens downward; its pair lets the bubble out sideways. Pop "
+         "it then, over Om Nom.",
+         candies=[(120, 520)], ropes=[rope(120, 400)], bubbles=[{"pos": (120, 600)}],
+         hats=[hats((120, 180), 270, (340, 160), 0)], om_nom=(440, 620), stars=[(120, 350), (120, 250), (440, 400)]),
+    make("b4_l06", "Puff into the hat",
+         "The candy swings; puff it at the bottom of the swing so that it flies into the hat; its pair sends it to Om "
+         "Nom.",
+         candies=[(120, 300)], ropes=[rope(120, 150)], cushions=[cushion(30, 300, 0)],
+         hats=[hats((360, 330), 180, (240, 120), 270)], om_nom=(240, 620), stars=[(230, 300), (320, 320), (240, 400)]),
+    make("b4_l07", "Around the spikes",
+         "Spikes roof Om Nom over; the hat's pair opens under them. Drop the candy straight into the hat: cut the "
+         "slack rope first, or it swings the candy away.",
+         candies=[(80, 150)], ropes=[rope(80, 50), rope(200, 60, slack=0)], hats=[hats((80, 500), 90, (360, 470), 270)],
+         spikes=[spikes((280, 430), (440, 430))], om_nom=(370, 620),
+         stars=[(80, 300), (80, 420), (370, 540)]),
+    make("b4_l08", "Sling into the hat",
+         "The red rope slings the candy; cut it so that the candy flies into the hat, and the pair drops it into Om "
+         "Nom.",
+         candies=[(100, 600)], ropes=[rope(20, 680, balance=True), rope(200, 460, stretch=30)],
+         hats=[hats((300, 470), 180, (70, 90), 270)], om_nom=(70, 420), stars=[(180, 500), (70, 200), (70, 300)]),
+    make("b4_l09", "Out of the hat, into a rope",
+         "The candy falls into the hat and shoots out of its pair sideways; the automatic rope catches it in flight "
+         "and swings it round, down into Om Nom. Take the automatic rope away and the candy flies off.",
+         candies=[(80, 120)], ropes=[rope(80, 30)], hats=[hats((80, 420), 90, (200, 150), 0)],
+         active_pins=[{"pos": (380, 230), "radius": 90}], om_nom=(370, 350), stars=[(80, 300), (300, 170), (440, 250)]),
+    make("b4_l10", "The spider and the hat",
+         "A spider comes down the short rope. Cut it in time: the candy drops, the slack rope catches it and swings "
+         "it into the hat, whose pair drops it on Om Nom.",
+         candies=[(140, 200)], ropes=[rope(140, 100, spider=0.0), rope(300, 120, slack=40)],
+         hats=[hats((300, 345), 180, (60, 380), 270)], om_nom=(60, 640), stars=[(200, 300), (250, 335), (60, 500)]),
+    make("b4_l11", "Through the hat, past the sparks",
+         "The pair of the hat opens above an electric barrier. Drop the candy when it will come out while the "
+         "barrier is off.",
+         candies=[(100, 140)], ropes=[rope(100, 40)], hats=[hats((100, 420), 90, (340, 120), 270)],
+         electrics=[electric((260, 330), (440, 330), 1.6, 0.9, 0.6)], om_nom=(340, 620), stars=[(100, 300), (340, 250), (340, 450)]),
+    make("b4_l12", "Drop from the hook",
+         "The hook carries the candy across; drop it when it is over the hat, and the pair sends it down to Om Nom.",
+         candies=[(80, 200)], ropes=[rope(80, 80, track=track(400, 80, 8.0))], hats=[hats((300, 450), 90, (420, 380), 270)],
+         om_nom=(420, 640), stars=[(200, 210), (300, 350), (420, 520)]),
+    make("b4_l13", "Roll into the hat",
+         "Drop the candy on the ramp: it rolls down into the hat at its foot, and the other hat throws it down to Om "
+         "Nom. Cut the wrong rope first and it swings off the ramp's end.",
+         candies=[(170, 180)], ropes=[rope(170, 80), rope(40, 60, slack=0)], walls=[wall((150, 345), (330, 420))],
+         hats=[hats((380, 420), 180, (100, 470), 300)], om_nom=(210, 640), stars=[(170, 260), (260, 360), (150, 560)]),
+    make("b4_l14", "Puff the bubble under the hat",
+         "The bubble rises beside the hat; puff it over so that it rises into the hat, and pop it when its pair lets "
+         "it out over Om Nom.",
+         candies=[(100, 560)], bubbles=[{"pos": (100, 560)}], ropes=[rope(100, 660)], cushions=[cushion(20, 420, 0)],
+         hats=[hats((240, 200), 270, (340, 250), 0)], om_nom=(430, 620), stars=[(100, 470), (240, 300), (430, 400)]),
+    make("b4_l15", "Magic finale",
+         "Hook, hats, sparks and a spider: let go of the moving candy before the spider reaches it, into the hat, "
+         "when its pair will send it out while the barrier is off.",
+         candies=[(80, 220)], ropes=[rope(80, 100, track=track(380, 100, 8.0), spider=3.5)],
+         hats=[hats((260, 450), 90, (420, 300), 270)], electrics=[electric((340, 420), (470, 420), 2.0, 1.0)],
+         om_nom=(420, 630), stars=[(170, 230), (260, 360), (420, 520)]),
+]
+
+# -- box 5: Valentine --------------------------------------------------------------------------------
+
+BOX5: list[Level] = [
+    make("b5_l01", "Two halves",
+         "Two candy halves, each on its own rope. Cut the left half's short rope: it swings into the right half and "
+         "they join; then let the whole candy go when its swing will carry it to Om Nom (a half alone is no meal).",
+         candies=[(140, 250), (300, 330)],
+         ropes=[rope(140, 150, candy=0), rope(300, 140, candy=0, slack=0), rope(300, 150, candy=1)],
+         om_nom=(300, 620), stars=[(220, 290), (300, 400), (300, 500)]),
+    make("b5_l02", "Meet in the middle",
+         "Both halves hang on two ropes each. Cut each half's outer rope (one swipe) and they swing together "
+         "beneath the middle, join, and hang over Om Nom: then let them drop.",
+         candies=[(120, 240), (360, 240)],
+         ropes=[rope(40, 160, candy=0), rope(200, 140, candy=0), rope(280, 140, candy=1), rope(440, 160, candy=1)],
+         om_nom=(240, 620), stars=[(195, 285), (300, 330), (240, 480)]),
+    make("b5_l03", "Drop one onto the other",
+         "One half hangs above the other. Drop it: it falls onto the lower half and they join, held by the lower "
+         "half's two ropes. Then cut those together, and the candy drops to Om Nom.",
+         candies=[(240, 420), (250, 200)],
+         ropes=[rope(160, 330, candy=0), rope(320, 330, candy=0), rope(250, 90, candy=1)],
+         om_nom=(240, 640), stars=[(250, 310), (240, 520), (270, 580)]),
+    make("b5_l04", "A half in a bubble",
+         "Drop the lower half into the bubble: it rises to the upper half and they join, floating on the upper "
+         "half's rope. Pop the bubble, then cut the rope, and the whole candy falls to Om Nom.",
+         candies=[(220, 460), (250, 260)], bubbles=[{"pos": (220, 540)}],
+         ropes=[rope(220, 350, candy=0), rope(250, 160, candy=1)], om_nom=(250, 640),
+         stars=[(200, 400), (250, 110), (250, 480)]),
+    make("b5_l05", "Puff the halves together",
+         "Puff the right half into a swing toward the left half; when they touch they join, on both ropes. Cut both "
+         "ropes in one swipe and the candy drops to Om Nom.",
+         candies=[(150, 300), (330, 300)], ropes=[rope(150, 180, candy=0), rope(330, 180, candy=1)],
+         cushions=[cushion(450, 300, 180)], om_nom=(240, 620), stars=[(250, 310), (240, 420), (240, 520)]),
+    make("b5_l06", "Through the hat to the other half",
+         "The left half drops into a hat; its pair throws it sideways into the right half. Joined, the candy hangs "
+         "from the right half's rope: let it go over Om Nom.",
+         candies=[(80, 150), (360, 330)], ropes=[rope(80, 50, candy=0), rope(360, 210, candy=1)],
+         hats=[hats((80, 440), 90, (180, 330), 0)], om_nom=(380, 520), stars=[(80, 300), (270, 330), (360, 480)]),
+    make("b5_l07", "Join over the spikes",
+         "Spikes lie under the halves. Let them swing into each other first; only the joined candy, dropped at the "
+         "right moment, clears the spikes to Om Nom.",
+         candies=[(120, 280), (360, 280)],
+         ropes=[rope(40, 200, candy=0), rope(200, 160, candy=0), rope(280, 160, candy=1), rope(440, 200, candy=1)],
+         spikes=[spikes((60, 480), (200, 480)), spikes((280, 480), (420, 480))], om_nom=(240, 640),
+         stars=[(240, 400), (240, 500), (160, 340)]),
+    make("b5_l08", "The automatic rope brings them together",
+         "Drop the left half: the automatic rope catches it and swings it into the right half. Joined, cut them "
+         "loose over Om Nom.",
+         candies=[(80, 150), (285, 395)], ropes=[rope(80, 50, candy=0), rope(285, 275, candy=1)],
+         active_pins=[{"pos": (180, 320), "radius": 110}], om_nom=(285, 640), stars=[(80, 250), (200, 440), (285, 530)]),
+    make("b5_l09", "Throw a half",
+         "The red rope throws the left half at the right one. Joined in the air or on the rope, the candy then needs "
+         "letting go over Om Nom.",
+         candies=[(100, 500), (340, 300)],
+         ropes=[rope(20, 580, candy=0, balance=True), rope(200, 400, candy=0, stretch=20), rope(340, 180, candy=1)],
+         om_nom=(340, 640), stars=[(180, 430), (330, 440), (340, 540)]),
+    make("b5_l10", "A spider on one half",
+         "A spider comes down the right half's rope. Swing the left half into it before the spider arrives, then cut "
+         "the joined candy loose.",
+         candies=[(130, 300), (330, 300)],
+         ropes=[rope(130, 180, candy=0), rope(280, 160, candy=0, slack=0), rope(330, 180, candy=1, spider=0.5)],
+         om_nom=(300, 630), stars=[(230, 330), (300, 420), (300, 520)]),
+    make("b5_l11", "Halves and sparks",
+         "Cut the left half loose: it swings under the right half and they join, hanging from two ropes over an "
+         "electric barrier. Cut both ropes in one swipe when the candy will pass the barrier while it is off.",
+         candies=[(140, 200), (300, 270)],
+         ropes=[rope(140, 100, candy=0), rope(300, 90, candy=0, slack=0), rope(300, 160, candy=1)],
+         electrics=[electric((180, 440), (420, 440), 2.0, 0.8)], om_nom=(300, 640),
+         stars=[(220, 280), (300, 370), (300, 520)]),
+    make("b5_l12", "A half on the hook",
+         "One half rides a hook along its track; drop it when it is over the other half's slack rope, which swings "
+         "it into the other half. Joined, drop the candy on Om Nom.",
+         candies=[(80, 200), (360, 420)],
+         ropes=[rope(80, 100, candy=0, track=track(360, 100, 8.0)), rope(360, 300, candy=1)],
+         om_nom=(360, 640), stars=[(220, 200), (360, 340), (360, 520)]),
+    make("b5_l13", "Roll together",
+         "Drop both halves on the ramp: they roll into each other at the bottom, join, and roll on into Om Nom.",
+         candies=[(100, 200), (300, 300)], ropes=[rope(100, 100, candy=0), rope(300, 200, candy=1)],
+         walls=[wall((60, 420), (340, 500))], om_nom=(420, 560), stars=[(100, 330), (200, 420), (300, 470)]),
+    make("b5_l14", "Bubble and hat",
+         "The left half rises in a bubble into a hat; its pair sets the bubble beside the right half. Pop it there "
+         "so that the halves meet, then drop the candy to Om Nom.",
+         candies=[(100, 560), (340, 300)], bubbles=[{"pos": (100, 560)}],
+         ropes=[rope(100, 660, candy=0), rope(340, 200, candy=1)], hats=[hats((100, 200), 270, (340, 130), 270)],
+         om_nom=(340, 640), stars=[(100, 380), (340, 220), (340, 470)]),
+    make("b5_l15", "Two automatic ropes",
+         "Each half falls through an automatic rope's circle; the two ropes swing the halves into each other. Then "
+         "cut them loose over Om Nom.",
+         candies=[(100, 100), (380, 100)], ropes=[rope(100, 30, candy=0), rope(380, 30, candy=1)],
+         active_pins=[{"pos": (170, 300), "radius": 90}, {"pos": (310, 300), "radius": 90}], om_nom=(240, 630),
+         stars=[(100, 230), (380, 230), (240, 480)]),
+    make("b5_l16", "Puff one, drop the other",
+         "The right half floats in a bubble; puff it over to the left half's line, pop it, and both meet as the left "
+         "one falls. Joined, the candy falls on to Om Nom.",
+         candies=[(120, 150), (360, 500)], bubbles=[{"pos": (360, 500)}],
+         ropes=[rope(120, 50, candy=0), rope(360, 600, candy=1)], cushions=[cushion(460, 380, 180)],
+         om_nom=(120, 640), stars=[(120, 260), (240, 390), (120, 520)]),
+    make("b5_l17", "Stretched halves",
+         "Two red ropes pull the halves toward each other, each held back by a rope behind it. Cut the two back ropes "
+         "at once and they are thrown together.",
+         candies=[(120, 300), (360, 300)],
+         ropes=[rope(40, 300, candy=0, balance=True), rope(200, 300, candy=0, stretch=18),
+                rope(440, 300, candy=1, balance=True), rope(280, 300, candy=1, stretch=18)],
+         om_nom=(240, 640), stars=[(200, 330), (240, 420), (240, 520)]),
+    make("b5_l18", "Spider between the halves",
+         "A spider comes down the right half's rope; the left half hangs from a hook. Join them before it arrives, "
+         "then let the whole candy drop into Om Nom.",
+         candies=[(80, 260), (300, 320)],
+         ropes=[rope(80, 140, candy=0, track=track(300, 140, 6.0)), rope(300, 180, candy=1, spider=1.0)],
+         om_nom=(300, 640), stars=[(200, 270), (300, 420), (300, 520)]),
+    make("b5_l19", "Valentine finale",
+         "Cut the left half loose in its bubble, push the bubble across with the cushion to the right half, pop it "
+         "as they meet, and drop the joined candy to Om Nom.",
+         candies=[(80, 560), (360, 280)], bubbles=[{"pos": (80, 560)}],
+         ropes=[rope(80, 660, candy=0), rope(360, 160, candy=1)], cushions=[cushion(20, 380, 0)], om_nom=(360, 640),
+         stars=[(80, 440), (200, 300), (360, 480)]),
+]
+
+# -- the book ----------------------------------------------------------------------------------------
+
+LEVELS: list[Level] = BOX1 + BOX2 + BOX3 + BOX4 + BOX5
+
+
+def design(level_id: str) -> Level:
+    for level in LEVELS:
+        if level.id == level_id:
+            return level
+    raise KeyError(f"no design for level {level_id!r}")
+
+
+def designed_ids() -> list[str]:
+    return [lv.id for lv in LEVELS]
+
+
+assert all(lv.box in BOXES for lv in LEVELS)

@@ -4,9 +4,10 @@ An attempt: the model sees the screenshot and the text state, chooses one action
 world, paused while it thinks, applies the action and then runs ACTION_INTERVAL seconds
 (sleep(s) runs s seconds instead), and the model sees the result. The game decides the
 outcome: won when Om Nom eats the candy, lost when the candy leaves the screen, touches a
-hazard or a spider reaches it. success() and the 10th action end the decisions: the world
+hazard or a spider reaches it. success(), fail() and the 10th action end the decisions: the world
 then runs on for up to RUN_ON_CAP seconds to decide (undecided after success(): a false
-claim, scored as a loss; undecided after the 10th action: truncated). fail() gives up.
+claim, scored as a loss; undecided after the 10th action: truncated). fail() stops acting
+too: the world runs on and the game decides (a candy already on its way still wins).
 Stars = stars the candy touched, when the level is won (0 otherwise).
 """
 
@@ -20,11 +21,64 @@ from deepphy.envs.cuttherope import constants as C
 from deepphy.envs.cuttherope.level import BOX_THEMES, Level, level_ids, load_level
 from deepphy.envs.cuttherope.render import render
 from deepphy.envs.cuttherope.sim import World, seconds_to_steps
-from deepphy.envs.cuttherope.space import CutAction, CutSpace
+from deepphy.envs.cuttherope.space import MULTI_CUTS, CutAction, CutSpace
 from deepphy.envs.images import Image
 
 
 INITIAL = ObservationCache()
+
+
+class Attempt:
+    """One attempt's rules, without pictures: the world, the actions taken, the cushions
+    tapped. The environment plays through it; so does the calibration's reference baseline."""
+
+    def __init__(self, level: Level) -> None:
+        self.world = World.from_level(level)
+        self.actions = 0
+        self.tapped: list[int] = []
+        self.done = False
+        self.truncated = False
+
+    def space(self) -> CutSpace:
+        world = self.world
+        avail = world.available()
+        level = world.level
+        return CutSpace(num_pins=len(level.pins), num_active_pins=len(level.active_pins),
+                        num_bubbles=len(level.bubbles), num_cushions=len(level.cushions),
+                        pins=avail["pins"], active_pins=avail["active_pins"], bubbles=avail["bubbles"],
+                        cushions_tapped=sorted(self.tapped))
+
+    def play(self, action: CutAction) -> list[str]:
+        """Apply one valid action and let the world run; after the last action it runs on
+        to decide. Returns the feedback, in parts."""
+        assert not self.done, "the attempt is over"
+        world = self.world
+        self.actions += 1
+        if action.name == "tap_air_cushion" and action.ids[0] not in self.tapped:
+            self.tapped.append(action.ids[0])
+        words = act(world, action)
+        feedback = [f"{format_action(action)}: {words}", *_event_words(world)]
+        if not world.decided and self.actions >= C.MAX_ACTIONS:
+            feedback.append(f"that was the last of {C.MAX_ACTIONS} actions: the world runs on "
+                            f"(at most {C.RUN_ON_CAP:g} s) to decide the outcome")
+            world.run_on(seconds_to_steps(C.RUN_ON_CAP))
+            feedback += _event_words(world)
+            self.truncated = not world.decided
+        self.done = world.decided or self.truncated
+        if world.decided:
+            won = world.status == "won"
+            feedback.append(f"LEVEL {'WON' if won else 'LOST'} at t = {world.time:.2f} s: {world.reason}"
+                            + (f", with {world.stars_collected} of {len(world.level.stars)} stars" if won else ""))
+        elif self.truncated:
+            feedback.append(f"undecided after {C.RUN_ON_CAP:g} s more: the attempt ends unsolved")
+        else:
+            feedback.append(f"t = {world.time:.2f} s, stars {world.stars_collected}/{len(world.level.stars)}")
+        return feedback
+
+    @property
+    def stars(self) -> int:
+        """The attempt's stars: those the candy touched, if won."""
+        return self.world.stars_collected if self.world.status == "won" else 0
 
 
 class CutTheRopeEnv(Environment):
@@ -32,10 +86,11 @@ class CutTheRopeEnv(Environment):
 
     def __init__(self, options=None) -> None:
         super().__init__(options)
-        self.world: World | None = None
-        self.actions = 0
-        self.done = False
-        self.tapped: list[int] = []
+        self.attempt: Attempt | None = None
+
+    @property
+    def world(self) -> World | None:
+        return self.attempt.world if self.attempt else None
 
     @classmethod
     def tasks(cls, options) -> list[Task]:
@@ -53,73 +108,47 @@ class CutTheRopeEnv(Environment):
 
     def start(self, level: Level, observe: bool = True) -> Observation | None:
         """Start an attempt of `level` (a level given as data, e.g. one being designed)."""
-        self.world = World.from_level(level)
-        self.actions, self.done, self.tapped = 0, False, []
+        self.attempt = Attempt(level)
         return self.observation() if observe else None
 
     def step(self, action: Action) -> StepResult:
-        assert self.world is not None and not self.done, "reset() first; the attempt is over"
+        attempt = self.attempt
+        assert attempt is not None and not attempt.done, "reset() first; the attempt is over"
         assert isinstance(action, CutAction)
-        world = self.world
+        world = attempt.world
         problem = invalid_reason(world, action)
         if problem:
-            self.done = True
+            attempt.done = True
             return StepResult(terminated=True, invalid_reason=problem, feedback=f"invalid action: {problem}",
                               stars=0, info=self._info())
-        self.actions += 1
-        if action.name == "tap_air_cushion" and action.id not in self.tapped:
-            self.tapped.append(action.id)
-        words = act(world, action)
-        feedback = [f"{format_action(action)}: {words}", *_event_words(world)]
-        truncated = False
-        if not world.decided and self.actions >= C.MAX_ACTIONS:
-            feedback.append(f"that was the last of {C.MAX_ACTIONS} actions: the world runs on "
-                            f"(at most {C.RUN_ON_CAP:g} s) to decide the outcome")
-            world.run_on(seconds_to_steps(C.RUN_ON_CAP))
-            feedback += _event_words(world)
-            truncated = not world.decided
+        text = "; ".join(attempt.play(action))
         won = world.status == "won"
-        self.done = world.decided or truncated
-        if world.decided:
-            feedback.append(f"LEVEL {'WON' if won else 'LOST'} at t = {world.time:.2f} s: {world.reason}"
-                            + (f", with {world.stars_collected} of {len(world.level.stars)} stars" if won else ""))
-        elif truncated:
-            feedback.append(f"undecided after {C.RUN_ON_CAP:g} s more: the attempt ends unsolved")
-        else:
-            feedback.append(f"t = {world.time:.2f} s, stars {world.stars_collected}/{len(world.level.stars)}")
-        text = "; ".join(feedback)
         banner = None
         if world.decided:
             banner = f"WON: {world.stars_collected} star(s)" if won else f"LOST: {world.reason}"
-        elif truncated:
+        elif attempt.truncated:
             banner = "not decided: out of actions"
         frame = Image.from_array(
-            f"a{self.actions}",
-            f"the level after action {self.actions} ({format_action(action)}), t = {world.time:.2f} s; "
+            f"a{attempt.actions}",
+            f"the level after action {attempt.actions} ({format_action(action)}), t = {world.time:.2f} s; "
             "magenta dots trace the candy's path",
             render(world, trail=True, banner=banner[:60] if banner else None),
         )
         return StepResult(
             terminated=world.decided,
-            truncated=truncated,
+            truncated=attempt.truncated,
             success=won,
-            observation=None if self.done else self.observation(),
+            observation=None if attempt.done else self.observation(),
             feedback=text,
             key_frames=[frame],
-            stars=(world.stars_collected if won else 0) if self.done else None,
+            stars=attempt.stars if attempt.done else None,
             info=self._info(),
         )
 
     # -- observation --------------------------------------------------------------------------
 
     def space(self) -> CutSpace:
-        world = self.world
-        avail = world.available()
-        level = world.level
-        return CutSpace(num_pins=len(level.pins), num_active_pins=len(level.active_pins),
-                        num_bubbles=len(level.bubbles), num_cushions=len(level.cushions),
-                        pins=avail["pins"], active_pins=avail["active_pins"], bubbles=avail["bubbles"],
-                        cushions_tapped=sorted(self.tapped))
+        return self.attempt.space()
 
     def observation(self) -> Observation:
         world = self.world
@@ -129,11 +158,11 @@ class CutTheRopeEnv(Environment):
             "B bubbles, C air cushions); white labels name magic hats (H) and electric barriers (E).",
             render(world),
         )
-        return Observation(images=[image], text=describe(world, self.actions), action_space=self.space())
+        return Observation(images=[image], text=describe(world, self.attempt.actions), action_space=self.space())
 
     def _info(self) -> dict:
         w = self.world
-        return {"t": round(w.time, 2), "actions": self.actions, "status": w.status, "reason": w.reason,
+        return {"t": round(w.time, 2), "actions": self.attempt.actions, "status": w.status, "reason": w.reason,
                 "stars_touched": w.stars_collected}
 
 
@@ -146,8 +175,10 @@ def invalid_reason(world: World, action: CutAction) -> str | None:
     avail = world.available()
     field = {"cut_pin": "pins", "cut_active_pin": "active_pins", "pop_bubble": "bubbles",
              "tap_air_cushion": "cushions"}.get(action.name)
-    if field and action.id not in avail[field]:
+    if field and (not action.ids or any(i not in avail[field] for i in action.ids)):
         return f"{format_action(action)}: no such element can be used now"
+    if len(set(action.ids)) != len(action.ids) or (len(action.ids) > 1 and action.name not in MULTI_CUTS):
+        return f"{format_action(action)}: only cuts may name several elements, each once"
     if action.name == "tap_air_cushion" and action.times not in C.TAP_TIMES:
         return f"times must be one of {C.TAP_TIMES}"
     if action.name == "sleep" and not (action.seconds is not None and C.SLEEP_MIN <= action.seconds <= C.SLEEP_MAX):
@@ -157,27 +188,28 @@ def invalid_reason(world: World, action: CutAction) -> str | None:
 
 def act(world: World, action: CutAction) -> str:
     """The rules of one (valid) action: apply it, then let the world run (ACTION_INTERVAL,
-    the sleep's seconds, or after success() until decided, at most RUN_ON_CAP). Returns what
-    the action did, in words; `world.events` holds what happened while the world ran."""
-    if action.name == "fail":
-        world.status, world.reason, world.events = "lost", "you gave up with fail()", []
-        return "you gave up the level"
-    if action.name == "success":
+    the sleep's seconds, or after success() and fail() until decided, at most RUN_ON_CAP).
+    Returns what the action did, in words; `world.events` holds what happened while the
+    world ran."""
+    if action.name in ("success", "fail"):
         world.run_on(seconds_to_steps(C.RUN_ON_CAP))
         if not world.decided:
             world.status = "lost"
-            world.reason = f"success() was claimed, but Om Nom had not eaten the candy {C.RUN_ON_CAP:g} s later"
-        return f"you declared the level won: the world runs on (at most {C.RUN_ON_CAP:g} s) to decide"
+            world.reason = (f"success() was claimed, but Om Nom had not eaten the candy {C.RUN_ON_CAP:g} s later"
+                            if action.name == "success" else
+                            f"you stopped with fail(), and Om Nom had not eaten the candy {C.RUN_ON_CAP:g} s later")
+        said = "declared the level won" if action.name == "success" else "stopped acting (fail)"
+        return f"you {said}: the world runs on (at most {C.RUN_ON_CAP:g} s) and the game decides"
     if action.name == "sleep":
         words = f"the world runs for {action.seconds:g} s"
     elif action.name == "cut_pin":
-        words = world.cut_pin(action.id)
+        words = "; ".join(world.cut_pin(i) for i in action.ids)
     elif action.name == "cut_active_pin":
-        words = world.cut_active_pin(action.id)
+        words = "; ".join(world.cut_active_pin(i) for i in action.ids)
     elif action.name == "pop_bubble":
-        words = world.pop_bubble(action.id)
+        words = world.pop_bubble(action.ids[0])
     else:
-        words = world.tap_air_cushion(action.id, action.times)
+        words = world.tap_air_cushion(action.ids[0], action.times)
     world.advance(seconds_to_steps(action.seconds if action.name == "sleep" else C.ACTION_INTERVAL))
     return words
 
@@ -213,17 +245,20 @@ def describe(world: World, actions_taken: int) -> str:
             if r.candy != i:
                 continue
             label = f"P{r.sid}" if r.source == "pin" else f"A{r.sid}"
-            d = math.hypot(c.x - r.ax, c.y - r.ay)
-            state = "taut" if r.length - d <= C.ROPE_TAUT_SLACK else "slack"
-            ropes.append(f"{label} ({state}, length {r.length:.0f}" + (f", tension {r.tension:.1f} candy weights)"
-                                                                     if state == "taut" else ")"))
+            stretch = world.rope_stretch(r)
+            if stretch > 0.0:
+                state = f"taut, stretched {stretch:.1f} px, pulling {world.rope_tension(r):.1f} candy weights"
+            else:
+                state = f"slack by {-stretch:.1f} px, pulling nothing"
+            ropes.append(f"{label} (rest length {r.length:.0f}, {state})")
         held = "held by the ropes of " + ", ".join(ropes) if ropes else "held by no rope"
         bubble = f"; inside bubble B{carried[i]}" if i in carried else ""
         lines.append(f"{name}: at {_xy((c.x, c.y))}, velocity {_xy((c.vx, c.vy))} px/s; {held}{bubble}.")
     whole = [c for _, c in candies if not c.half]
-    mouth = f"Om Nom's mouth: {_xy(level.om_nom)}"
+    mouth = f"Om Nom: centre {_xy(level.om_nom)}, radius {C.OMNOM_RADIUS:g} px"
     if whole:
-        mouth += f", {math.dist(level.om_nom, (whole[0].x, whole[0].y)):.0f} px from the candy"
+        gap = math.dist(level.om_nom, (whole[0].x, whole[0].y)) - C.OMNOM_RADIUS - whole[0].radius
+        mouth += f"; the candy's edge is {gap:.0f} px from his"
     if level.halves and not whole:
         mouth += " (he eats only a whole candy: join the two halves first)"
     lines.append(mouth + ".")
@@ -234,7 +269,13 @@ def describe(world: World, actions_taken: int) -> str:
         parts = []
         for k, p in enumerate(level.pins, 1):
             r = world.rope_of_pin(k)
-            parts.append(f"P{k} {_xy(p.pos)} " + (f"rope attached (length {r.length:.0f})" if r else "no rope (cut)"))
+            where = _xy(p.at(world.time))
+            if p.track:
+                vx, vy = p.velocity(world.time)
+                heading = f"moving toward {_xy(p.track.to if vx * (p.track.to[0] - p.pos[0]) + vy * (p.track.to[1] - p.pos[1]) > 0 else p.pos)}"
+                where += (f" (a hook sliding between {_xy(p.pos)} and {_xy(p.track.to)}, one round trip every "
+                          f"{p.track.period:g} s; {heading} at {math.hypot(vx, vy):.0f} px/s)")
+            parts.append(f"P{k} {where} " + (f"rope attached (rest length {r.length:.0f})" if r else "no rope (cut)"))
         lines.append("Pins: " + "; ".join(parts) + ".")
     if world.active_pins:
         words = {"armed": "waiting for the candy", "attached": "its rope holds the candy", "cut": "used (rope cut)",
@@ -256,6 +297,8 @@ def describe(world: World, actions_taken: int) -> str:
         lines.append("Magic hats: " + "; ".join(
             f"pair H{k}: opening at {_xy(p.hats[0].pos)} facing {compass(p.hats[0].angle)} and at "
             f"{_xy(p.hats[1].pos)} facing {compass(p.hats[1].angle)}" for k, p in enumerate(level.hats, 1)) + ".")
+    if level.walls:
+        lines.append("Walls: " + "; ".join(f"from {_xy(w.a)} to {_xy(w.b)}" for w in level.walls) + ".")
     if level.spikes:
         lines.append("Spikes: " + "; ".join(f"from {_xy(s.a)} to {_xy(s.b)}" for s in level.spikes) + ".")
     if level.electrics:

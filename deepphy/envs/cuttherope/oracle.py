@@ -1,17 +1,17 @@
-"""The oracle: a beam search over action sequences that finds winning plans.
+"""The oracle: a beam search over action sequences that finds winning plans, and the
+measurements of a level built on it (calibrate.py reports them).
 
 A plan is a list of actions in the game's own vocabulary. The search builds it one
 "move" at a time: optionally a sleep (a grid of durations, `SEARCH_SLEEPS`), then one
-element action (cut a pin, cut an active pin, pop a bubble, tap a cushion 1/3/5 times).
-Every move is simulated from a snapshot of the world (`World.snapshot`, exact: the world
-rebuilds its pymunk space from its own state at every decision) by the environment's own
-rules (`env.act`). After each move a
-rollout lets the world run on without actions: if the candy reaches Om Nom the plan
-(+ `success()` when the win comes after the last action) is a solution. The best
-`beam` moves by a guide score (stars touched, closest approach to the mouth, halves'
-gap) go on to the next layer. The search stops at its budget (seconds, or simulated moves
-for a result independent of the machine), after a 3-star plan, or when no plan can grow
-within the decision limit.
+element action (cut a pin or two at once, cut an active pin, pop a bubble, tap a cushion
+1/3/5 times). Every move is simulated from a snapshot of the world (`World.snapshot`,
+exact: the world rebuilds its pymunk space from its own state at every decision) by the
+environment's own rules (`env.act`). After each move a rollout lets the world run on
+without actions: if the candy reaches Om Nom the plan (+ `success()` when the win comes
+after the last action) is a solution. The best `beam` moves by a guide score (stars
+touched, closest approach to Om Nom, halves' gap) go on to the next layer. The search
+stops at its budget of simulated moves (machine-independent), after a 3-star plan, or
+when no plan can grow within the decision limit.
 
 Results are verified by replaying the plan's text through the environment itself
 (`replay`), so the stored plans are what a model's identical actions would do.
@@ -19,30 +19,34 @@ Results are verified by replaying the plan's text through the environment itself
 
 from __future__ import annotations
 
-import math
-import time
 from dataclasses import dataclass, field
 from typing import Callable
 
-import numpy as np
-
 from deepphy.envs.cuttherope import constants as C
-from deepphy.envs.cuttherope.env import act
+from deepphy.envs.cuttherope.env import Attempt, act
 from deepphy.envs.cuttherope.level import Level
 from deepphy.envs.cuttherope.sim import World, seconds_to_steps
-from deepphy.envs.cuttherope.space import CutAction, CutSpace
+from deepphy.envs.cuttherope.space import CutAction, CutSpace, format_seconds
 
-SEARCH_SLEEPS = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.3, 1.6, 2.0, 2.5, 3.0)  # sleep before a move (0: none)
-ROLLOUT = 4.0  # s the world runs on after a move to see where it leads (<= RUN_ON_CAP)
+SEARCH_SLEEPS = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)  # sleep before a move (0: none)
+ROLLOUT = 6.0  # s the world runs on after a move to see where it leads (<= RUN_ON_CAP)
+SEARCH_NODES = 1500  # default budget of a search, in simulated moves
+BEAM = 10  # moves kept per layer
 SUCCESS = CutAction(name="success")
+ANY = CutSpace(num_pins=9, num_active_pins=9, num_bubbles=9, num_cushions=9, pins=list(range(1, 10)),
+               active_pins=list(range(1, 10)), bubbles=list(range(1, 10)))  # parses any plan's text
 
 
 def moves(world: World) -> list[CutAction]:
+    """Every element action now: each rope cut alone or with another, bubbles, cushion taps."""
     avail = world.available()
-    return ([CutAction(name="cut_pin", id=i) for i in avail["pins"]]
-            + [CutAction(name="cut_active_pin", id=i) for i in avail["active_pins"]]
-            + [CutAction(name="pop_bubble", id=i) for i in avail["bubbles"]]
-            + [CutAction(name="tap_air_cushion", id=i, times=n) for i in avail["cushions"] for n in C.TAP_TIMES])
+    return CutSpace(num_pins=len(world.level.pins), num_active_pins=len(world.level.active_pins),
+                    num_cushions=len(avail["cushions"]), pins=avail["pins"], active_pins=avail["active_pins"],
+                    bubbles=avail["bubbles"]).element_actions()
+
+
+def texts_of(actions: list[CutAction]) -> list[str]:
+    return [ANY.format(a) for a in actions]
 
 
 @dataclass
@@ -52,8 +56,7 @@ class Plan:
 
     @property
     def texts(self) -> list[str]:
-        space = CutSpace()
-        return [space.format(a) for a in self.actions]
+        return texts_of(self.actions)
 
 
 @dataclass
@@ -61,7 +64,6 @@ class SearchResult:
     best: Plan | None = None
     solutions: int = 0
     nodes: int = 0
-    seconds: float = 0.0
     plans: list[Plan] = field(default_factory=list)  # every distinct solution found (best first)
 
 
@@ -73,23 +75,22 @@ class _Node:
 
 
 def _guide(world: World, rollout: World, n_actions: int) -> float:
-    """Higher is better: stars touched, closeness to the mouth, halves coming together."""
-    score = 60.0 * rollout.stars_collected - min(world.min_mouth_distance, rollout.min_mouth_distance)
+    """Higher is better: stars touched, closeness to Om Nom, halves coming together."""
+    score = 60.0 * rollout.stars_collected - min(world.min_mouth_distance, rollout.min_mouth_distance, 1000.0)
     if world.level.halves and not any(c.alive and not c.half for c in rollout.candies) and rollout.status != "won":
-        score -= 400.0 + min(world.min_join_gap, rollout.min_join_gap)
+        score -= 400.0 + min(world.min_join_gap, rollout.min_join_gap, 1000.0)
     if rollout.status == "lost":
         score -= 150.0
     return score - 3.0 * n_actions
 
 
-def search(level: Level, *, budget_s: float = 30.0, max_nodes: int | None = None, beam: int = 8, want_stars: int = 3,
+def search(level: Level, *, max_nodes: int = SEARCH_NODES, beam: int = BEAM, want_stars: int = 3,
            max_actions: int = C.MAX_ACTIONS, sleeps: tuple[float, ...] = SEARCH_SLEEPS,
-           accept: Callable[[Plan], bool] | None = None) -> SearchResult:
-    """Beam search for winning plans of at most `max_actions` actions, within `budget_s`
-    seconds and (if given) `max_nodes` simulated moves; the node budget alone makes the
-    result independent of the machine's speed. With `accept`, stop at the first solution
-    it accepts (and report only accepted ones)."""
-    start = time.perf_counter()
+           accept: Callable[[Plan], bool] | None = None,
+           forbid: Callable[[CutAction], bool] | None = None) -> SearchResult:
+    """Beam search for winning plans of at most `max_actions` actions within `max_nodes`
+    simulated moves. Stops at a plan with `want_stars` stars; with `accept`, keeps only the
+    solutions it accepts and stops at the first; `forbid` leaves out the moves it names."""
     result = SearchResult()
     found: dict[tuple[str, ...], Plan] = {}
     rollout_steps = seconds_to_steps(ROLLOUT)
@@ -103,12 +104,9 @@ def search(level: Level, *, budget_s: float = 30.0, max_nodes: int | None = None
 
     def done() -> bool:
         best = max((p.stars for p in found.values()), default=-1)
-        return (best >= want_stars or (accept is not None and bool(found))
-                or time.perf_counter() - start > budget_s
-                or (max_nodes is not None and result.nodes >= max_nodes))
+        return best >= want_stars or (accept is not None and bool(found)) or result.nodes >= max_nodes
 
-    root = World.from_level(level)
-    layer = [_Node(root, [])]
+    layer = [_Node(World.from_level(level), [])]
     while layer and not done():
         children: list[_Node] = []
         for node in layer:
@@ -130,6 +128,8 @@ def search(level: Level, *, budget_s: float = 30.0, max_nodes: int | None = None
                 if len(prefix) + 1 > max_actions:
                     continue
                 for move in moves(base):
+                    if forbid is not None and forbid(move):
+                        continue
                     world = base.snapshot()
                     act(world, move)
                     result.nodes += 1
@@ -140,7 +140,7 @@ def search(level: Level, *, budget_s: float = 30.0, max_nodes: int | None = None
                     if world.decided:
                         continue
                     roll = world.snapshot()
-                    roll.run_on(rollout_steps)
+                    roll.run_on(rollout_steps, settle=True)
                     if roll.status == "won" and len(actions) < max_actions:
                         record(actions + [SUCCESS], roll.stars_collected)
                     children.append(_Node(world, actions, _guide(world, roll, len(actions))))
@@ -160,17 +160,17 @@ def search(level: Level, *, budget_s: float = 30.0, max_nodes: int | None = None
                 break
     result.plans = sorted(found.values(), key=lambda p: (-p.stars, len(p.actions)))
     result.best = result.plans[0] if result.plans else None
-    result.seconds = time.perf_counter() - start
     return result
 
 
 def _state_key(world: World) -> tuple:
-    return (tuple((round(c.x / 8), round(c.y / 8), c.alive) for c in world.candies),
+    return (tuple((round(c.x / 8), round(c.y / 8), round(c.vx / 40), round(c.vy / 40), c.alive)
+                  for c in world.candies),
             tuple(sorted((r.source, r.sid) for r in world.ropes)),
-            tuple(b.popped for b in world.bubbles), world.stars_collected)
+            tuple(b.popped for b in world.bubbles), tuple(world.stars), len(world.puffs))
 
 
-# -- verification and baselines -------------------------------------------------------------------
+# -- verification -----------------------------------------------------------------------------------
 
 
 def replay(level: Level, texts: list[str]) -> dict:
@@ -192,32 +192,17 @@ def replay(level: Level, texts: list[str]) -> dict:
             "outcome": "plan ended before the level was decided"}
 
 
-def reference_win_rate(level: Level, rng: np.random.Generator, episodes: int = 100) -> float:
-    """How often the reference random agent (space.reference_reply's policy: cut / pop / tap
-    once, in uniformly random order, then fail()) wins: a measure of how easy a level is."""
-    wins = 0
-    for _ in range(episodes):
-        world = World.from_level(level)
-        tapped: set[int] = set()
-        for _ in range(C.MAX_ACTIONS):
-            avail = world.available()
-            choices = ([CutAction(name="cut_pin", id=i) for i in avail["pins"]]
-                       + [CutAction(name="cut_active_pin", id=i) for i in avail["active_pins"]]
-                       + [CutAction(name="pop_bubble", id=i) for i in avail["bubbles"]]
-                       + [CutAction(name="tap_air_cushion", id=i, times=1) for i in avail["cushions"]
-                          if i not in tapped])
-            if not choices:
-                break
-            move = choices[int(rng.integers(len(choices)))]
-            if move.name == "tap_air_cushion":
-                tapped.add(move.id)
-            act(world, move)
-            if world.decided:
-                break
-        else:
-            world.run_on(seconds_to_steps(C.RUN_ON_CAP))
-        wins += world.status == "won"
-    return wins / episodes
+def play(level: Level, texts: list[str]) -> tuple[bool, int]:
+    """(won, stars) of a plan by the environment's rules, without pictures; a plan that ends
+    undecided is followed by success() (the world runs on and the game decides)."""
+    attempt = Attempt(level)
+    for text in texts:
+        attempt.play(attempt.space().parse(text))
+        if attempt.done:
+            break
+    else:
+        attempt.play(SUCCESS)
+    return attempt.world.status == "won", attempt.stars
 
 
 def trajectory(level: Level, actions: list[CutAction]) -> tuple[World, list[tuple[float, float]], list[str]]:
@@ -235,5 +220,63 @@ def trajectory(level: Level, actions: list[CutAction]) -> tuple[World, list[tupl
     return world, path, events
 
 
-def path_length(path: list[tuple[float, float]]) -> float:
-    return sum(math.dist(p, q) for p, q in zip(path, path[1:]))
+# -- timing: the sleeps of a plan ---------------------------------------------------------------------
+
+
+def _with_sleeps(texts: list[str], values: list[float]) -> list[str] | None:
+    """`texts` with its sleeps set to `values` (in order); None if one is out of range."""
+    out, k = [], 0
+    for t in texts:
+        action = ANY.parse(t)
+        if action.name == "sleep":
+            v = round(values[k], 2)
+            k += 1
+            if not C.SLEEP_MIN <= v <= C.SLEEP_MAX:
+                return None
+            t = f"sleep({format_seconds(v)})"
+        out.append(t)
+    return out
+
+
+def sleeps_of(texts: list[str]) -> list[float]:
+    return [a.seconds for a in map(ANY.parse, texts) if a.name == "sleep"]
+
+
+def robustness(level: Level, texts: list[str], shift: float = 0.1) -> dict:
+    """Does the plan still win when its sleeps move by +-shift: each alone, and all
+    together? {"variants", "won", "three_stars", "min_stars"} (a plan without sleeps has none)."""
+    base = sleeps_of(texts)
+    variants = []
+    for d in (-shift, shift) if base else ():
+        variants.append([v + d for v in base])
+        if len(base) > 1:
+            variants += [[v + (d if j == k else 0.0) for j, v in enumerate(base)] for k in range(len(base))]
+    won = three = 0
+    stars = []
+    for values in variants:
+        plan = _with_sleeps(texts, values)
+        ok, s = play(level, plan) if plan else (False, 0)
+        won += ok
+        three += ok and s == 3
+        stars.append(s if ok else 0)
+    return {"variants": len(variants), "won": won, "three_stars": three, "min_stars": min(stars, default=3)}
+
+
+def centre_sleeps(level: Level, texts: list[str], step: float = 0.05, reach: float = 1.0) -> list[str]:
+    """The plan with each sleep moved to the middle of the window of values (in `step`s,
+    within `reach` s) over which the plan still wins with its stars, the others kept."""
+    _, stars = play(level, texts)
+    values = sleeps_of(texts)
+    for _ in range(2):
+        for k in range(len(values)):
+            def wins(v: float) -> bool:
+                plan = _with_sleeps(texts, values[:k] + [v] + values[k + 1:])
+                return plan is not None and play(level, plan) == (True, stars)
+
+            lo = hi = values[k]
+            while hi + step <= values[k] + reach and wins(hi + step):
+                hi += step
+            while lo - step >= values[k] - reach and wins(lo - step):
+                lo -= step
+            values[k] = round((lo + hi) / 2 / step) * step
+    return _with_sleeps(texts, values)

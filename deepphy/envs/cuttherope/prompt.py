@@ -3,29 +3,37 @@ action syntax. Every number comes from constants.py."""
 
 from __future__ import annotations
 
+import math
+
 from deepphy.envs.base import Observation, Task
 from deepphy.envs.cuttherope import constants as C
-from deepphy.envs.cuttherope.space import CutSpace
 from deepphy.prompts.base import EnvPrompt
 
 
 class CutTheRopePrompt(EnvPrompt):
     def rules(self, task: Task, observation: Observation) -> str:
         times = ", ".join(str(t) for t in C.TAP_TIMES)
+        fall_100 = math.sqrt(2 * 100 / C.GRAVITY)
         return f"""You are playing Cut the Rope, level "{task.id}". Feed the candy to Om Nom.
 
 The picture ({C.WIDTH} x {C.HEIGHT} pixels) is the whole level; positions in the text are in these
 pixels (px), x to the right and y DOWNWARD from the top-left corner. Gravity pulls the candy down
-the screen.
+the screen at {C.GRAVITY:g} px/s^2 (let go from rest, it falls 100 px in about {fall_100:.2f} s).
 - Candy: the red disc with white stripes. In some levels there are two smaller pink candy halves
   instead: they join into one candy when they touch, and Om Nom eats only a whole candy.
-- Om Nom: the round green creature with his mouth open in the middle. The level is won the
-  moment the candy's centre comes within {C.MOUTH_RADIUS:g} px of his centre, from any side.
-- Ropes: lines from a pin to the candy. A rope never stretches beyond its length: a taut rope
-  holds the candy like a pendulum (it swings), a slack rope sags and pulls nothing. The more
-  a rope is stretched the redder it is drawn. Cutting a rope lets the candy fly on with the
-  velocity it had at that moment.
-- Pins (gray dots, yellow labels P1, P2, ...): each holds one rope.
+- Om Nom: the round green creature with his mouth open in the middle (a disc of radius
+  {C.OMNOM_RADIUS:g} px). The level is won the moment the candy touches him, from any side. A candy
+  half that touches him is lost.
+- Ropes: lines from a pin to the candy. A rope pulls only when stretched beyond its length:
+  slack (drawn sagging) it pulls nothing; taut it holds the candy like a pendulum (it swings)
+  and gives a little, like a stiff elastic ({1 / C.ROPE_STIFFNESS:g} px per candy weight it carries); jerked
+  taut it bounces the candy back. A rope
+  drawn red is stretched: it contracts fast and throws the candy toward its pin. Cutting a
+  rope lets the candy fly on with the velocity it had at that moment. Ropes pass through
+  everything.
+- Pins (gray dots, yellow labels P1, P2, ...): each holds one rope. A hook is a pin that slides
+  back and forth along a light gray groove by itself (the text gives its round-trip time); its
+  rope moves with it.
 - Active pins (blue dots in a dashed blue circle, labels A1, ...): when the candy's centre
   enters the dashed circle, a new rope attaches from that pin (as long as the candy's distance
   then), and the candy swings on it.
@@ -41,6 +49,7 @@ the screen.
   share the colour and the label): the candy moving into the opening of one hat comes out of
   the other hat's opening, moving in the direction that hat faces, at the same speed. The
   ropes holding it snap.
+- Walls (thick brown bars): the candy bounces off them and rolls along them.
 - Spikes (dark gray teeth) and live electric barriers (yellow zigzag; gray dashed when off,
   white labels E1, ...; the text says when they switch) destroy the candy that touches them.
 - Spiders (black, on a rope) crawl from the pin down the rope toward the candy at {C.SPIDER_SPEED:g} px/s;
@@ -54,21 +63,22 @@ Goal: Om Nom eats the candy. Stars: the stars the candy touched on the way (0 to
 the level is won. Win first; collect stars if you can.
 
 Time: the world is paused while you decide. After each action the world runs for {C.ACTION_INTERVAL:g} s so
-that you see its consequence, then stops again; sleep(seconds) instead runs the world for exactly
-that many seconds. You have at most {C.MAX_ACTIONS} actions. The level ends by itself as soon as it
-is won or lost. After success(), or after your {C.MAX_ACTIONS}th action, the world runs on without you
-for up to {C.RUN_ON_CAP:g} s: the game decides, so calling success() when Om Nom does not get the
-candy counts as a loss.
+that you see its first consequence, then stops again; sleep(seconds) instead runs the world for
+exactly that many seconds. You have at most {C.MAX_ACTIONS} actions. The level ends by itself as soon as
+it is won or lost. After success(), fail(), or your {C.MAX_ACTIONS}th action, the world runs on without
+you for up to {C.RUN_ON_CAP:g} s and the game decides: calling success() when Om Nom does not get the
+candy counts as a loss, and a candy already on its way to him still wins after fail().
 
 Actions (one per reply):
-- cut_pin(id): cut the rope of pin P<id>, e.g. cut_pin(1) for P1.
-- cut_active_pin(id): cut the rope of active pin A<id>; before it has caught the candy this
-  removes the active pin instead.
+- cut_pin(id): cut the rope of pin P<id>, e.g. cut_pin(2) for P2. Several ids cut those ropes
+  at the same moment (one long swipe), e.g. cut_pin(2, 3).
+- cut_active_pin(id): cut the rope of active pin A<id> (several ids: at the same moment);
+  before it has caught the candy this removes the active pin instead.
 - pop_bubble(id): pop bubble B<id> (the candy it carries falls free).
 - tap_air_cushion(id, times=n): n puffs of air cushion C<id>, n one of {times}.
 - sleep(seconds): let the world run for {C.SLEEP_MIN:g} to {C.SLEEP_MAX:g} seconds (two decimals).
 - success(): you are sure the candy will reach Om Nom; stop acting and let it happen.
-- fail(): give up the level.
+- fail(): stop acting; the world runs on and the game decides.
 Use only ids shown on the image that can still be used (the text lists them under "You can
 now"); a rope already cut or a bubble already popped cannot be used again. Anything else
 (unknown id, value out of range, no action) is an invalid action: it ends the level, lost."""
@@ -78,9 +88,9 @@ now"); a rope already cut or a bubble already popped cannot be used again. Anyth
                 "whether it will reach Om Nom, hit a hazard or leave the screen")
 
     def example(self, observation: Observation) -> str:
-        space = observation.action_space
-        if isinstance(space, CutSpace):
-            actions = space.element_actions(tap_times=(1,))
-            if actions:
-                return space.format(actions[0])
-        return "sleep(1)"
+        # A wait: the syntax of an action without a hint of any level's answer (doing nothing
+        # wins no level; a test checks that this example wins none).
+        return EXAMPLE
+
+
+EXAMPLE = "sleep(0.5)"

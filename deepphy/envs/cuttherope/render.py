@@ -2,10 +2,13 @@
 
 Legend (the prompt repeats it):
 - candy: red disc with white stripes (box 5: two smaller pink halves);
-- Om Nom: the round green creature with an open mouth (dark red) in his middle;
-- ropes: brown lines from a pin to the candy, redder the more they are stretched; a slack
-  rope sags;
-- pins: dark gray dots labelled P1, P2, ...;
+- Om Nom: the round green creature with an open mouth (dark red) in his middle; the whole
+  green disc is where he catches the candy;
+- walls: thick brown bars with a light edge;
+- ropes: brown lines from a pin to the candy, redder the more they are stretched (fully red
+  at ROPE_RED_STRETCH px); a slack rope sags;
+- pins: dark gray dots labelled P1, P2, ...; a hook on a track slides along a light gray
+  groove with a stop at each end;
 - active pins: blue dots inside a dashed blue circle, labelled A1, ...: a rope attaches
   when the candy enters the circle (faded once used);
 - bubbles: light blue rings labelled B1, ... (the label follows the bubble);
@@ -45,6 +48,9 @@ STAR_EDGE = (185, 120, 0)
 OMNOM = (90, 185, 60)
 MOUTH = (120, 20, 30)
 SPIKE = (75, 75, 85)
+WALL = (120, 85, 50)
+TRACK = (150, 150, 160)
+WALL_EDGE = (200, 170, 120)
 ELECTRIC = (250, 230, 40)
 SPIDER = (25, 25, 25)
 TRAIL = (200, 40, 200)
@@ -67,8 +73,13 @@ def render(world: World, *, labels: bool = True, trail: bool = False, banner: st
     for k, e in enumerate(level.electrics):
         _electric(img, e.a, e.b, world.electric_live(k))
         todo.append((f"E{k + 1}", ((e.a[0] + e.b[0]) / 2, (e.a[1] + e.b[1]) / 2), 14, False))
+    for pin in level.pins:
+        if pin.track:
+            _track(img, pin.pos, pin.track.to)
     for s in level.spikes:
         _spikes(img, s.a, s.b)
+    for w in level.walls:
+        _wall(img, w.a, w.b)
     for k, a in enumerate(world.active_pins):
         live = a.state in ("armed", "attached")
         if a.state == "armed":
@@ -94,15 +105,16 @@ def render(world: World, *, labels: bool = True, trail: bool = False, banner: st
         c = world.candies[rope.candy]
         path = _rope_path((rope.ax, rope.ay), (c.x, c.y), rope.length)
         rope_paths[(rope.source, rope.sid)] = path
-        f = min(1.0, max(0.0, (rope.tension - 0.5) / (C.TENSION_RED - 0.5)))
+        f = min(1.0, max(0.0, world.rope_stretch(rope) / C.ROPE_RED_STRETCH))
         colour = tuple(int(round(a + (b - a) * f)) for a, b in zip(ROPE, ROPE_TAUT))
         cv2.polylines(img, [np.round(path).astype(np.int32)], False, colour, 3, cv2.LINE_AA)
     for k, pin in enumerate(level.pins):
         attached = world.rope_of_pin(k + 1) is not None
-        cv2.circle(img, _pt(pin.pos), int(C.PIN_RADIUS), PIN if attached else FADED, -1, cv2.LINE_AA)
-        cv2.circle(img, _pt(pin.pos), int(C.PIN_RADIUS) - 3, (200, 200, 200), -1, cv2.LINE_AA)
+        at = pin.at(world.time)
+        cv2.circle(img, _pt(at), int(C.PIN_RADIUS), PIN if attached else FADED, -1, cv2.LINE_AA)
+        cv2.circle(img, _pt(at), int(C.PIN_RADIUS) - 3, (200, 200, 200), -1, cv2.LINE_AA)
         if attached:
-            todo.append((f"P{k + 1}", pin.pos, C.PIN_RADIUS + 4, True))
+            todo.append((f"P{k + 1}", at, C.PIN_RADIUS + 4, True))
     for s in world.spiders:
         path = rope_paths.get(("pin", s.pin))
         if s.gone or path is None:
@@ -143,9 +155,9 @@ def _blend(img: np.ndarray, overlay: np.ndarray, alpha: float) -> None:
 
 def _rope_path(a, b, length: float) -> np.ndarray:
     """The drawn rope: straight when taut, a sagging parabola when slack (its arc length
-    close to the rope's length)."""
+    close to the rope's rest length)."""
     d = math.dist(a, b)
-    if length - d <= C.ROPE_TAUT_SLACK:
+    if length - d <= 0.0:
         return np.array([a, b], float)
     sag = min(length / 2, math.sqrt(3.0 / 8.0 * max(d, 1.0) * (length - d)))
     mid = ((a[0] + b[0]) / 2, (a[1] + b[1]) / 2 + 2 * sag)  # control point of a quadratic Bezier
@@ -204,20 +216,37 @@ def _star(img, p) -> None:
     cv2.polylines(img, [poly], True, STAR_EDGE, 1, cv2.LINE_AA)
 
 
-def _om_nom(img, mouth) -> None:
-    """A round green creature centred on his mouth, eyes above it."""
-    mx, my = mouth
-    cv2.circle(img, _pt(mouth), int(C.OMNOM_RADIUS), OMNOM, -1, cv2.LINE_AA)
-    cv2.circle(img, _pt(mouth), int(C.OMNOM_RADIUS), (40, 110, 30), 2, cv2.LINE_AA)
+def _om_nom(img, centre) -> None:
+    """A round green creature (his disc is his catch zone), eyes above a wide open mouth."""
+    mx, my = centre
+    r = C.OMNOM_RADIUS
+    cv2.circle(img, _pt(centre), int(r), OMNOM, -1, cv2.LINE_AA)
+    cv2.circle(img, _pt(centre), int(r), (40, 110, 30), 2, cv2.LINE_AA)
     for side in (-1, 1):
-        eye = (mx + side * 15, my - 24)
-        cv2.circle(img, _pt(eye), 8, WHITE, -1, cv2.LINE_AA)
-        cv2.circle(img, _pt(eye), 8, (40, 110, 30), 1, cv2.LINE_AA)
-        cv2.circle(img, _pt((eye[0], eye[1] + 2)), 4, BLACK, -1, cv2.LINE_AA)
-    cv2.ellipse(img, _pt((mx, my + 6)), (24, 17), 0, 0, 360, MOUTH, -1, cv2.LINE_AA)
-    cv2.ellipse(img, _pt((mx, my + 14)), (13, 6), 0, 0, 360, (220, 80, 90), -1, cv2.LINE_AA)
+        eye = (mx + side * 0.38 * r, my - 0.58 * r)
+        cv2.circle(img, _pt(eye), int(0.2 * r), WHITE, -1, cv2.LINE_AA)
+        cv2.circle(img, _pt(eye), int(0.2 * r), (40, 110, 30), 1, cv2.LINE_AA)
+        cv2.circle(img, _pt((eye[0], eye[1] + 2)), int(0.1 * r), BLACK, -1, cv2.LINE_AA)
+    cv2.ellipse(img, _pt((mx, my + 0.15 * r)), (int(0.62 * r), int(0.45 * r)), 0, 0, 360, MOUTH, -1, cv2.LINE_AA)
+    cv2.ellipse(img, _pt((mx, my + 0.38 * r)), (int(0.33 * r), int(0.15 * r)), 0, 0, 360, (220, 80, 90), -1,
+                cv2.LINE_AA)
     for side in (-1, 1):  # teeth
-        cv2.rectangle(img, _pt((mx + side * 8 - 3, my - 10)), _pt((mx + side * 8 + 3, my - 4)), WHITE, -1)
+        cv2.rectangle(img, _pt((mx + side * 0.2 * r - 3, my - 0.28 * r)), _pt((mx + side * 0.2 * r + 3, my - 0.12 * r)),
+                      WHITE, -1)
+
+
+def _track(img, a, b) -> None:
+    """The groove a hook slides along, with a stop at each end."""
+    cv2.line(img, _pt(a), _pt(b), TRACK, 6, cv2.LINE_AA)
+    cv2.line(img, _pt(a), _pt(b), (235, 225, 210), 2, cv2.LINE_AA)
+    for end in (a, b):
+        cv2.circle(img, _pt(end), 5, TRACK, -1, cv2.LINE_AA)
+
+
+def _wall(img, a, b) -> None:
+    thickness = int(2 * C.WALL_RADIUS)
+    cv2.line(img, _pt(a), _pt(b), WALL, thickness, cv2.LINE_AA)
+    cv2.line(img, _pt(a), _pt(b), WALL_EDGE, 2, cv2.LINE_AA)
 
 
 def _spikes(img, a, b) -> None:

@@ -8,10 +8,16 @@ original would (the oracle's search relies on it), and nothing depends on a pymu
 living across decisions (the project's determinism rule: never copy a space).
 
 Dynamics (constants.py has every number):
-- a candy is a pymunk body (no shape: nothing collides with it) under gravity;
-- a rope is a SlideJoint from its pin to the candy centre, 0 <= distance <= length: slack
-  when the candy is closer, a taut pendulum at its length; cutting removes the joint, so
-  the candy flies on with the swing's velocity;
+- a candy is a pymunk body (a solid disc) under gravity; its circle bounces off and rolls
+  on walls (static segments); candies do not collide with each other (two halves join);
+- a rope is an elastic segment from its pin to the candy centre: it pulls nothing while
+  slack (shorter than its rest length) and pulls like a stiff damped spring once stretched
+  beyond it, so it swings the candy, gives and bounces back when jerked taut, and a rope that
+  starts stretched contracts and throws the candy. Its pull is set as the body's force
+  before each step, computed where pymunk will have moved the body (pymunk moves bodies
+  before it updates velocities): symplectic Euler, which keeps a swing's energy. Ropes pass
+  through everything (as in the web game); cutting one removes it, so the candy flies on
+  with the swing's velocity. A hook on a track moves its rope's pin;
 - a bubble that captures the candy replaces gravity by a lift with drag (velocity relaxes
   to BUBBLE_RISE_SPEED upward); it carries the candy until popped;
 - a puff of an air cushion changes the velocity of a candy inside the cushion's column, by
@@ -24,9 +30,10 @@ Dynamics (constants.py has every number):
 - an active pin attaches a new rope (length = the distance at that moment) when a candy
   centre enters its circle;
 - two halves join into one candy when they touch (momentum conserved, ropes and bubbles
-  kept); Om Nom eats only a whole candy.
+  kept); Om Nom eats a whole candy the moment it touches his drawn disc; a half that touches
+  him is lost.
 Contacts are checked along each step's path (segment distances), so fast candies do not
-tunnel through stars, hazards or the mouth.
+tunnel through stars, hazards or Om Nom.
 """
 
 from __future__ import annotations
@@ -38,10 +45,14 @@ from dataclasses import dataclass, field
 import pymunk
 
 from deepphy.envs.cuttherope import constants as C
-from deepphy.envs.cuttherope.level import Level
+from deepphy.envs.cuttherope.level import Level, PinSpec
 
 PUFF_DELAY_STEPS = round(C.PUFF_DELAY * C.STEPS_PER_SECOND)
 PUFF_GAP_STEPS = round(C.PUFF_GAP * C.STEPS_PER_SECOND)
+ROPE_K = C.ROPE_STIFFNESS * C.CANDY_MASS * C.GRAVITY  # force per unit of stretch
+ROPE_C = C.ROPE_DAMPING * C.CANDY_MASS  # force per unit/s of stretching speed
+SETTLE_CHECK = 10  # steps between two looks of run_on(settle=True) at whether anything still moves
+SETTLE_SPEED = 1.0  # px/s: slower than this at two looks, SETTLE_CHECK steps apart, is at rest
 
 
 def seconds_to_steps(seconds: float) -> int:
@@ -63,6 +74,7 @@ class Candy:
     y: float
     vx: float = 0.0
     vy: float = 0.0
+    spin: float = 0.0  # angular velocity (rad/s): it rolls on walls
     half: bool = False
     alive: bool = True  # False once eaten, destroyed, lost, or joined into a whole candy
 
@@ -79,11 +91,10 @@ class Candy:
 class Rope:
     source: str  # "pin" or "active"
     sid: int  # id (1-based) of its pin or active pin
-    ax: float  # anchor (the pin)
+    ax: float  # anchor (the pin) now; a hook on a track moves it
     ay: float
-    length: float
+    length: float  # rest length: the rope pulls once the candy is farther than this
     candy: int  # index into World.candies
-    tension: float = 0.0  # in candy weights, at the end of the last advance
 
 
 @dataclass
@@ -116,11 +127,32 @@ class Event:
     text: str
 
 
+class Geometry:
+    """A level's fixed elements in the form the rules read every step (shared, never copied)."""
+
+    def __init__(self, level: Level) -> None:
+        self.stars = [tuple(s) for s in level.stars]
+        self.hazards = []  # (electric index or None, a, b, bounding box)
+        for k, h in [(None, s) for s in level.spikes] + list(enumerate(level.electrics)):
+            lo_x, hi_x = min(h.a[0], h.b[0]), max(h.a[0], h.b[0])
+            lo_y, hi_y = min(h.a[1], h.b[1]), max(h.a[1], h.b[1])
+            self.hazards.append((k, tuple(h.a), tuple(h.b), (lo_x, lo_y, hi_x, hi_y)))
+        self.hats = []  # (pair index, opening, facing, the other hat's opening, its facing)
+        for k, pair in enumerate(level.hats):
+            for h in (0, 1):
+                here, there = pair.hats[h], pair.hats[1 - h]
+                self.hats.append((k, tuple(here.pos), direction(here.angle), tuple(there.pos), direction(there.angle)))
+        self.cushions = [(tuple(c.pos), direction(c.angle)) for c in level.cushions]
+        self.hooks = {i: p for i, p in enumerate(level.pins, 1) if p.track is not None}
+        self.om_nom = tuple(level.om_nom)
+
+
 @dataclass
 class World:
     """One level in play. Build with `World.from_level(level)`."""
 
     level: Level
+    geo: Geometry
     step_count: int = 0
     candies: list[Candy] = field(default_factory=list)
     ropes: list[Rope] = field(default_factory=list)
@@ -133,36 +165,33 @@ class World:
     reason: str = ""  # how it was won or lost, in words
     events: list[Event] = field(default_factory=list)  # what happened, for the feedback
     trail: list[tuple[float, float]] = field(default_factory=list)  # candy positions during the last advance
-    min_mouth_distance: float = math.inf  # closest a whole candy came to the mouth (the oracle's guide)
+    min_mouth_distance: float = math.inf  # closest a whole candy's centre came to Om Nom's (the oracle's guide)
     min_join_gap: float = math.inf  # closest the two halves came, edge to edge (the oracle's guide)
 
     @classmethod
     def from_level(cls, level: Level) -> "World":
         halves = level.halves
-        world = cls(level=level)
-        world.candies = [Candy(x=c.pos[0], y=c.pos[1], half=halves) for c in level.candies]
-        world.ropes = [Rope("pin", i, p.pos[0], p.pos[1], level.rope_length(i - 1), p.candy)
-                       for i, p in enumerate(level.pins, 1)]
+        world = cls(level=level, geo=Geometry(level))
+        world.candies = [Candy(x=c.pos[0], y=c.pos[1], vx=c.velocity[0], vy=c.velocity[1], half=halves)
+                         for c in level.candies]
+        world.ropes = [Rope("pin", i, *p.at(0.0), level.rope_length(i - 1), p.candy) for i, p in enumerate(level.pins, 1)]
         world.spiders = [Spider(i, p.spider.delay) for i, p in enumerate(level.pins, 1) if p.spider]
         world.bubbles = [Bubble(b.pos[0], b.pos[1]) for b in level.bubbles]
         world.active_pins = [ActivePin(a.pos[0], a.pos[1], a.radius) for a in level.active_pins]
         world.stars = [False] * len(level.stars)
-        probe = world.snapshot()  # what the ropes pull at t = 0 (for the picture and the text)
-        probe.advance(1)
-        for rope, probed in zip(world.ropes, probe.ropes):
-            rope.tension = probed.tension
         return world
 
     # -- snapshots (the oracle) -------------------------------------------------------------
 
     def snapshot(self) -> "World":
         """An independent copy that continues exactly as this world would."""
-        level, self.level = self.level, None  # levels are frozen: share, don't copy
+        shared = self.level, self.geo  # frozen: share, don't copy
+        self.level = self.geo = None
         try:
             clone = copy.deepcopy(self)
         finally:
-            self.level = level
-        clone.level = level
+            self.level, self.geo = shared
+        clone.level, clone.geo = shared
         return clone
 
     # -- queries ----------------------------------------------------------------------------
@@ -185,6 +214,27 @@ class World:
     def rope_of_active_pin(self, pin: int) -> Rope | None:
         return next((r for r in self.ropes if r.source == "active" and r.sid == pin), None)
 
+    def hook(self, rope: Rope) -> PinSpec | None:
+        """The pin spec of a rope whose pin moves on a track (None for a fixed pin)."""
+        return self.geo.hooks.get(rope.sid) if rope.source == "pin" else None
+
+    def rope_pull(self, rope: Rope) -> tuple[float, float, float]:
+        """(tension in force units, unit vector from the pin to the candy): the rope's pull on
+        its candy now; 0 when slack (a rope never pushes)."""
+        c = self.candies[rope.candy]
+        hook = self.hook(rope)
+        avx, avy = hook.velocity(self.time) if hook else (0.0, 0.0)
+        return _pull(c.x - rope.ax, c.y - rope.ay, c.vx - avx, c.vy - avy, rope.length)
+
+    def rope_tension(self, rope: Rope) -> float:
+        """What the rope pulls now, in weights of a whole candy."""
+        return self.rope_pull(rope)[0] / (C.CANDY_MASS * C.GRAVITY)
+
+    def rope_stretch(self, rope: Rope) -> float:
+        """How far the candy is beyond the rope's rest length (negative: slack by that much)."""
+        c = self.candies[rope.candy]
+        return math.hypot(c.x - rope.ax, c.y - rope.ay) - rope.length
+
     def available(self) -> dict[str, list[int]]:
         """Ids that an action can name now: pins whose rope is still attached, active pins
         not yet cut (waiting or holding a rope), bubbles not popped, every air cushion."""
@@ -203,7 +253,16 @@ class World:
     def spider_position(self, spider: Spider) -> float:
         """Fraction of its rope the spider has crawled (0 at the pin, 1 at the candy)."""
         rope = self.rope_of_pin(spider.pin)
-        return min(1.0, spider.crawled / rope.length) if rope and rope.length > 0 else 0.0
+        if rope is None:
+            return 0.0
+        return min(1.0, spider.crawled / self.rope_span(rope))
+
+    def rope_span(self, rope: Rope) -> float:
+        """The rope's length now: its rest length, or longer while stretched."""
+        c = self.candies[rope.candy]
+        hook = self.hook(rope)
+        ax, ay = hook.at(self.time) if hook else (rope.ax, rope.ay)
+        return max(rope.length, math.hypot(c.x - ax, c.y - ay), 1e-9)
 
     # -- actions ----------------------------------------------------------------------------
 
@@ -245,100 +304,138 @@ class World:
 
     # -- dynamics ---------------------------------------------------------------------------
 
-    def advance(self, steps: int) -> None:
-        """Run the world for `steps` physics steps, or until the outcome is decided."""
+    def advance(self, steps: int, settle: bool = False) -> None:
+        """Run the world for `steps` physics steps, or until the outcome is decided; with
+        `settle`, also stop once nothing can change any more (`at_rest`)."""
         self.events = []
         self.trail = []
         if self.decided or steps <= 0:
             return
-        space, bodies, joints = self._build_space()
+        space, bodies = self._build_space()
         end = self.step_count + steps
-        while self.step_count < end and not self.decided:
-            self._apply_puffs(bodies)
-            before = [(c.x, c.y) for c in self.candies]
+        candies = self.candies
+        last_look = None
+        while self.step_count < end:
+            if self.puffs and self.puffs[0][0] <= self.step_count:
+                self._apply_puffs(bodies)
+            self._pull(bodies)
+            before = [(c.x, c.y) for c in candies]
             space.step(C.DT)
             self.step_count += 1
             for i, body in bodies.items():
-                c = self.candies[i]
+                c = candies[i]
                 c.x, c.y = body.position
                 c.vx, c.vy = body.velocity
+                c.spin = body.angular_velocity
             changed = self._rules(before)
             if self.step_count % C.TRAIL_EVERY == 0 or self.decided:
-                self.trail += [(self.candies[i].x, self.candies[i].y) for i in bodies]  # alive at the step's start
+                self.trail += [(candies[i].x, candies[i].y) for i in bodies]  # alive at the step's start
             if self.decided:
                 break
             if changed:
-                self._sync_space(space, bodies, joints)
-        for rope, joint in joints:
-            weight = self.candies[rope.candy].mass * C.GRAVITY
-            rope.tension = joint.impulse / C.DT / weight if any(r is rope for r in self.ropes) else 0.0
+                self._sync_space(space, bodies)
+            if settle and self.step_count % SETTLE_CHECK == 0:
+                look = [(c.x, c.y) for c in candies if c.alive] if self.at_rest() else None
+                if look is not None and last_look is not None and all(
+                        abs(a[0] - b[0]) + abs(a[1] - b[1]) < SETTLE_SPEED * SETTLE_CHECK * C.DT
+                        for a, b in zip(look, last_look)):
+                    break  # at rest at two looks, and it did not move between them
+                last_look = look
+        for rope in self.ropes:
+            hook = self.hook(rope)
+            if hook:
+                rope.ax, rope.ay = hook.at(self.time)
         self.sync_bubbles()
 
-    def run_on(self, max_steps: int) -> None:
-        """Run without actions until the outcome is decided or `max_steps` have passed."""
-        self.advance(max_steps)
+    def run_on(self, max_steps: int, settle: bool = False) -> None:
+        """Run without actions until the outcome is decided or `max_steps` have passed (with
+        `settle`, or until nothing can change any more)."""
+        self.advance(max_steps, settle=settle)
+
+    def at_rest(self) -> bool:
+        """Nothing moves and nothing will: every candy slower than SETTLE_SPEED, no bubble
+        carrying one, no puff to come, no spider on its way, no rope on a moving hook."""
+        if self.puffs or any(b.candy is not None and not b.popped for b in self.bubbles):
+            return False
+        if any(not s.gone and self.rope_of_pin(s.pin) is not None for s in self.spiders):
+            return False
+        if any(self.hook(r) for r in self.ropes):
+            return False
+        return all(abs(c.vx) + abs(c.vy) < SETTLE_SPEED for c in self.candies if c.alive)
 
     def _build_space(self):
         space = pymunk.Space()
         space.gravity = (0.0, C.GRAVITY)
         space.iterations = C.SOLVER_ITERATIONS
+        for wall in self.level.walls:
+            shape = pymunk.Segment(space.static_body, wall.a, wall.b, C.WALL_RADIUS)
+            shape.elasticity, shape.friction = 1.0, 1.0
+            space.add(shape)
         bodies: dict[int, pymunk.Body] = {}
         for i, c in enumerate(self.candies):
             if c.alive:
                 bodies[i] = _add_body(space, c)
-        joints = self._add_joints(space, bodies)
         self._set_buoyancy(bodies)
-        return space, bodies, joints
+        return space, bodies
 
-    def _add_joints(self, space: pymunk.Space, bodies: dict[int, pymunk.Body]) -> list[tuple[Rope, pymunk.SlideJoint]]:
-        joints = []
+    def _pull(self, bodies: dict[int, pymunk.Body]) -> None:
+        """Each rope's pull on its candy for the next step, computed where pymunk will have
+        moved the body when it updates its velocity (pymunk clears forces after a step)."""
+        if not self.ropes:
+            return
+        t = (self.step_count + 1) * C.DT
+        forces: dict[int, list[float]] = {}
         for rope in self.ropes:
-            joint = pymunk.SlideJoint(space.static_body, bodies[rope.candy], (rope.ax, rope.ay), (0.0, 0.0),
-                                      0.0, rope.length)
-            space.add(joint)
-            joints.append((rope, joint))
-        return joints
+            c = self.candies[rope.candy]
+            px, py = c.x + c.vx * C.DT, c.y + c.vy * C.DT
+            hook = self.geo.hooks.get(rope.sid) if rope.source == "pin" and self.geo.hooks else None
+            if hook is None:
+                tension, ux, uy = _pull(px - rope.ax, py - rope.ay, c.vx, c.vy, rope.length)
+            else:
+                (ax, ay), (avx, avy) = hook.at(t), hook.velocity(t)
+                tension, ux, uy = _pull(px - ax, py - ay, c.vx - avx, c.vy - avy, rope.length)
+            if tension > 0.0:
+                f = forces.setdefault(rope.candy, [0.0, 0.0])
+                f[0] -= tension * ux
+                f[1] -= tension * uy
+        for i, (fx, fy) in forces.items():
+            bodies[i].force = (fx, fy)
 
     def _set_buoyancy(self, bodies: dict[int, pymunk.Body]) -> None:
         carried = {b.candy for b in self.bubbles if b.candy is not None and not b.popped}
         for i, body in bodies.items():
             body.velocity_func = _buoyant if i in carried else pymunk.Body.update_velocity
 
-    def _sync_space(self, space: pymunk.Space, bodies: dict[int, pymunk.Body], joints: list) -> None:
-        """After a rule changed ropes, bubbles or candies: make the space match the state
+    def _sync_space(self, space: pymunk.Space, bodies: dict[int, pymunk.Body]) -> None:
+        """After a rule changed bubbles or candies: make the space match the state
         (positions and velocities of bodies that stay are kept as they are)."""
-        for _, joint in joints:
-            space.remove(joint)
-        joints.clear()
         for i in list(bodies):
             c = self.candies[i]
             if not c.alive:
-                space.remove(bodies.pop(i))
+                body = bodies.pop(i)
+                space.remove(body, *body.shapes)
             else:  # a teleport may have moved it
                 bodies[i].position = (c.x, c.y)
                 bodies[i].velocity = (c.vx, c.vy)
+                bodies[i].angular_velocity = c.spin
         for i, c in enumerate(self.candies):
             if c.alive and i not in bodies:
                 bodies[i] = _add_body(space, c)
-        joints.extend(self._add_joints(space, bodies))
         self._set_buoyancy(bodies)
 
     def _apply_puffs(self, bodies: dict[int, pymunk.Body]) -> None:
         while self.puffs and self.puffs[0][0] <= self.step_count:
             _, k = self.puffs.pop(0)
-            cushion = self.level.cushions[k]
-            dx, dy = direction(cushion.angle)
+            (cx, cy), (dx, dy) = self.geo.cushions[k]
             for i, body in bodies.items():
-                px, py = body.position
-                rx, ry = px - cushion.pos[0], py - cushion.pos[1]
+                c = self.candies[i]
+                rx, ry = c.x - cx, c.y - cy
                 along = rx * dx + ry * dy
                 across = abs(rx * dy - ry * dx)
                 if 0.0 <= along <= C.PUFF_RANGE and across <= C.PUFF_WIDTH / 2:
                     dv = C.PUFF_SPEED * (1.0 - along / C.PUFF_RANGE)
-                    vx, vy = body.velocity
-                    body.velocity = (vx + dv * dx, vy + dv * dy)
-                    c = self.candies[i]
-                    c.vx, c.vy = body.velocity
+                    c.vx, c.vy = c.vx + dv * dx, c.vy + dv * dy
+                    body.velocity = (c.vx, c.vy)
 
     # -- the rules, checked after every physics step --------------------------------------------
 
@@ -350,31 +447,92 @@ class World:
         self._event(reason)
 
     def _rules(self, before: list[tuple[float, float]]) -> bool:
-        """Apply every element's rule along the step's paths; True when ropes, bubbles or
-        candies changed so that the pymunk space must be rebuilt."""
-        level = self.level
+        """Apply every element's rule along the step's paths; True when bubbles or candies
+        changed so that the pymunk space must be rebuilt. Each check first compares cheap
+        bounds: this runs every step."""
+        geo, level = self.geo, self.level
         changed = False
         t = self.step_count
-        alive = [i for i, c in enumerate(self.candies) if c.alive]
-        paths = {i: (before[i], (self.candies[i].x, self.candies[i].y)) for i in alive}
         what = "a candy half" if level.halves else "the candy"
 
-        for i in alive:  # hazards and the edge of the screen
-            (p, q), c = paths[i], self.candies[i]
-            for s in level.spikes:
-                if _segment_distance(p, q, s.a, s.b) < C.HAZARD_REACH:
+        for i, c in enumerate(self.candies):
+            if not c.alive:
+                continue
+            p, q = before[i], (c.x, c.y)
+            move = abs(q[0] - p[0]) + abs(q[1] - p[1])
+            r = c.radius
+            # hazards and the edge of the screen
+            for k, a, b, (lo_x, lo_y, hi_x, hi_y) in geo.hazards:
+                reach = C.HAZARD_REACH + move
+                if not (lo_x - reach <= c.x <= hi_x + reach and lo_y - reach <= c.y <= hi_y + reach):
+                    continue
+                if k is not None and not self.electric_live(k, t):
+                    continue
+                if _segment_distance(p, q, a, b) < C.HAZARD_REACH:
                     c.alive = False
-                    self._lose(f"{what} hit spikes")
-                    return True
-            for k, e in enumerate(level.electrics):
-                if self.electric_live(k, t) and _segment_distance(p, q, e.a, e.b) < C.HAZARD_REACH:
-                    c.alive = False
-                    self._lose(f"{what} hit a live electric barrier")
+                    self._lose(f"{what} hit spikes" if k is None else f"{what} hit a live electric barrier")
                     return True
             m = C.OFFSCREEN_MARGIN
             if not (-m <= c.x <= C.WIDTH + m and -m <= c.y <= C.HEIGHT + m):
                 c.alive = False
                 self._lose(f"{what} left the screen")
+                return True
+            # stars
+            for k, (sx, sy) in enumerate(geo.stars):
+                if not self.stars[k] and abs(sx - c.x) + abs(sy - c.y) < 2 * (C.STAR_RADIUS + r + move):
+                    if _point_segment_distance((sx, sy), p, q) < C.STAR_RADIUS + r:
+                        self.stars[k] = True
+                        self._event(f"star collected ({sum(self.stars)} of {len(self.stars)})")
+            # bubbles capture
+            if self.bubbles and not any(b.candy == i for b in self.bubbles if not b.popped):
+                for k, b in enumerate(self.bubbles):
+                    if b.popped or b.candy is not None:
+                        continue
+                    if abs(b.x - c.x) + abs(b.y - c.y) < 2 * (C.BUBBLE_CAPTURE + move) and \
+                            _point_segment_distance((b.x, b.y), p, q) < C.BUBBLE_CAPTURE:
+                        b.candy = i
+                        changed = True
+                        self._event(f"bubble B{k + 1} captured {what}")
+                        break
+            # magic hats
+            for pair, (hx, hy), (fx, fy), (ox, oy), (gx, gy) in geo.hats:
+                if abs(hx - c.x) + abs(hy - c.y) > 2 * (C.HAT_RADIUS + move):
+                    continue
+                if c.vx * fx + c.vy * fy >= 0.0:
+                    continue  # moving away from (or along) the opening
+                if _point_segment_distance((hx, hy), p, q) >= C.HAT_RADIUS:
+                    continue
+                speed = math.hypot(c.vx, c.vy) * C.HAT_SPEED_FACTOR
+                gap = C.HAT_RADIUS + r + C.HAT_EXIT_GAP
+                c.x, c.y = ox + gx * gap, oy + gy * gap
+                c.vx, c.vy = speed * gx, speed * gy
+                snapped = [rope for rope in self.ropes if rope.candy == i]
+                for rope in snapped:
+                    self._drop_rope(rope)
+                self._event(f"{what} went through magic hat pair {pair + 1}" + (" (its ropes snapped)" if snapped else ""))
+                p = q = (c.x, c.y)
+                changed = True
+                break
+            # active pins
+            for k, a in enumerate(self.active_pins):
+                if a.state == "armed" and (c.x - a.x) ** 2 + (c.y - a.y) ** 2 <= (a.radius + C.ACTIVE_PIN_MARGIN) ** 2:
+                    a.state = "attached"
+                    self.ropes.append(Rope("active", k + 1, a.x, a.y, math.hypot(c.x - a.x, c.y - a.y), i))
+                    changed = True
+                    self._event(f"active pin A{k + 1} attached a rope to {what}")
+            # Om Nom
+            ox, oy = geo.om_nom
+            reach = C.OMNOM_RADIUS + r
+            d = math.hypot(ox - c.x, oy - c.y)
+            if not c.half and d < self.min_mouth_distance:
+                self.min_mouth_distance = d
+            if d < reach + move and _point_segment_distance((ox, oy), p, q) < reach:
+                c.alive = False
+                if c.half:
+                    self._lose("Om Nom ate a candy half: he needs the whole candy")
+                else:
+                    self.status, self.reason = "won", "Om Nom ate the candy"
+                    self._event(self.reason)
                 return True
 
         for s in self.spiders:  # spiders crawl toward the candy
@@ -385,74 +543,20 @@ class World:
                 s.gone = True
                 continue
             s.crawled += C.SPIDER_SPEED * C.DT
-            if s.crawled >= rope.length:
+            if s.crawled >= self.rope_span(rope):
                 self.candies[rope.candy].alive = False
                 self._lose(f"the spider on the rope of P{s.pin} reached {what} and took it")
                 return True
 
-        for i in alive:
-            (p, q), c = paths[i], self.candies[i]
-            for k, star in enumerate(level.stars):  # stars
-                if not self.stars[k] and _point_segment_distance(star, p, q) < C.STAR_RADIUS + c.radius:
-                    self.stars[k] = True
-                    self._event(f"star collected ({sum(self.stars)} of {len(self.stars)})")
-            if not any(b.candy == i for b in self.bubbles if not b.popped):  # bubbles capture
-                for k, b in enumerate(self.bubbles):
-                    if not b.popped and b.candy is None and _point_segment_distance((b.x, b.y), p, q) < C.BUBBLE_CAPTURE:
-                        b.candy = i
-                        changed = True
-                        self._event(f"bubble B{k + 1} captured {what}")
-                        break
-            for pair_index, pair in enumerate(level.hats):  # magic hats
-                for h, hat in enumerate(pair.hats):
-                    hx, hy = direction(hat.angle)
-                    if c.vx * hx + c.vy * hy >= 0.0:
-                        continue  # moving away from (or along) the opening
-                    if _point_segment_distance(hat.pos, p, q) >= C.HAT_RADIUS:
-                        continue
-                    out = pair.hats[1 - h]
-                    ox, oy = direction(out.angle)
-                    speed = math.hypot(c.vx, c.vy) * C.HAT_SPEED_FACTOR
-                    gap = C.HAT_RADIUS + c.radius + C.HAT_EXIT_GAP
-                    c.x, c.y = out.pos[0] + ox * gap, out.pos[1] + oy * gap
-                    c.vx, c.vy = speed * ox, speed * oy
-                    snapped = [r for r in self.ropes if r.candy == i]
-                    for r in snapped:
-                        self._drop_rope(r)
-                    self._event(f"{what} went through magic hat pair {pair_index + 1}"
-                                + (" (its ropes snapped)" if snapped else ""))
-                    paths[i] = ((c.x, c.y), (c.x, c.y))
+        if level.halves:
+            halves = [i for i, c in enumerate(self.candies) if c.alive and c.half]
+            if len(halves) == 2:  # the halves join
+                a, b = (self.candies[i] for i in halves)
+                gap = math.hypot(a.x - b.x, a.y - b.y) - a.radius - b.radius
+                self.min_join_gap = min(self.min_join_gap, gap)
+                if gap < 0.0:
+                    self._join(*halves)
                     changed = True
-                    break
-                else:
-                    continue
-                break
-            for k, a in enumerate(self.active_pins):  # active pins
-                if a.state == "armed" and math.hypot(c.x - a.x, c.y - a.y) <= a.radius + C.ACTIVE_PIN_MARGIN:
-                    a.state = "attached"
-                    self.ropes.append(Rope("active", k + 1, a.x, a.y, math.hypot(c.x - a.x, c.y - a.y), i))
-                    changed = True
-                    self._event(f"active pin A{k + 1} attached a rope to {what}")
-
-        halves = [i for i in alive if self.candies[i].half and self.candies[i].alive]
-        if len(halves) == 2:  # the halves join
-            a, b = (self.candies[i] for i in halves)
-            gap = math.hypot(a.x - b.x, a.y - b.y) - a.radius - b.radius
-            self.min_join_gap = min(self.min_join_gap, gap)
-            if gap < 0.0:
-                self._join(*halves)
-                changed = True
-
-        for i, c in enumerate(self.candies):  # Om Nom
-            if c.alive and not c.half:
-                p = paths.get(i, ((c.x, c.y), (c.x, c.y)))[0]
-                d = _point_segment_distance(level.om_nom, p, (c.x, c.y))
-                self.min_mouth_distance = min(self.min_mouth_distance, d)
-                if d < C.MOUTH_RADIUS:
-                    c.alive = False
-                    self.status, self.reason = "won", "Om Nom ate the candy"
-                    self._event(self.reason)
-                    return True
         return changed
 
     def _drop_rope(self, rope: Rope) -> None:
@@ -491,20 +595,39 @@ class World:
                 b.x, b.y = c.x, c.y
 
 
+CANDIES = pymunk.ShapeFilter(group=1)  # candies do not collide with each other
+
+
 def _add_body(space: pymunk.Space, candy: Candy) -> pymunk.Body:
-    """A candy's body: its mass, no rotation (ropes pull at its centre), no shape."""
-    body = pymunk.Body(candy.mass, math.inf)
+    """A candy's body: a solid disc of its mass (ropes pull at its centre; it rolls on
+    walls), whose circle collides with walls."""
+    body = pymunk.Body(candy.mass, pymunk.moment_for_circle(candy.mass, 0.0, candy.radius))
     body.position = (candy.x, candy.y)
     body.velocity = (candy.vx, candy.vy)
-    space.add(body)
+    body.angular_velocity = candy.spin
+    shape = pymunk.Circle(body, candy.radius)
+    shape.elasticity, shape.friction, shape.filter = C.CANDY_ELASTICITY, C.CANDY_FRICTION, CANDIES
+    space.add(body, shape)
     return body
 
 
 def _buoyant(body: pymunk.Body, gravity, damping: float, dt: float) -> None:
     """Velocity update inside a bubble: gravity replaced by a lift, with drag, so the
-    velocity relaxes to BUBBLE_RISE_SPEED upward."""
+    velocity relaxes to BUBBLE_RISE_SPEED upward (ropes still pull through the body's force)."""
     lift = -C.BUBBLE_DRAG * C.BUBBLE_RISE_SPEED
     pymunk.Body.update_velocity(body, (0.0, lift), math.exp(-C.BUBBLE_DRAG * dt), dt)
+
+
+def _pull(dx: float, dy: float, vx: float, vy: float, length: float) -> tuple[float, float, float]:
+    """A rope's pull on its candy, (tension, unit vector from the pin to the candy), given the
+    candy's offset and velocity relative to the pin: a damped spring on the stretch beyond the
+    rest length, never pushing."""
+    d = math.hypot(dx, dy)
+    if d <= length:
+        return 0.0, 0.0, 0.0
+    ux, uy = dx / d, dy / d
+    tension = ROPE_K * (d - length) + ROPE_C * (vx * ux + vy * uy)
+    return (tension, ux, uy) if tension > 0.0 else (0.0, 0.0, 0.0)
 
 
 def _point_segment_distance(p, a, b) -> float:

@@ -1,23 +1,30 @@
-"""Solvability of the Cut the Rope levels: replay the stored plans, search for plans, and
-(re)make the level files.
+"""Solvability and calibration of the Cut the Rope levels; (re)making the level files.
 
     deepphy solve --env cuttherope report [--levels b1_l01,...] [--json FILE]
         Replay every level's stored plan through the environment (the plan's text, parsed
         and stepped as a model's replies are) and print the solvability report: per box,
-        levels proven winnable, the stars of the stored plans, the best stars the search
-        found, plan lengths, and how often the reference random agent wins. Seconds.
+        levels proven winnable, the stored plans' stars and lengths. Seconds.
 
-    deepphy solve --env cuttherope search [--levels ...] [--nodes N] [--jobs N] [--write]
-        Run the oracle search (oracle.py) on the stored levels from scratch, with a budget
-        of N simulated moves per level (machine-independent), report what it finds, and
-        with --write store the best plan found where it has more stars than the stored one
-        (or the level has none). Minutes.
+    deepphy solve --env cuttherope calibrate [--levels ...] [--episodes 60] [--seed 0]
+                                             [--no-needs] [--json FILE]
+        What each level measures (calibrate.py): the reference baseline's win rate with
+        MOCK's own draws (runs 0..episodes-1; runs 0..2 are what `deepphy run --model mock
+        --runs 3` plays) and the stars of its wins, the share of a fixed timing grid of plans
+        that win, whether the stored plan still wins with every sleep moved by +-0.1 s, the
+        elements its three stars need, whether every first action wins, whether the candy
+        starts at rest; a per-box summary and the targets. Tens of minutes (--no-needs:
+        minutes).
 
-    deepphy solve --env cuttherope generate [--boxes 1,2] [--jobs N] [--nodes N]
-        Remake the level files of the given boxes with the seeded procedures of design.py:
-        propose layouts, keep those the oracle wins with the stage's mechanic, place three
-        stars on the winning plan's path, order each stage from easy to hard. Overwrites
-        levels/b<box>_l*.json. Tens of minutes.
+    deepphy solve --env cuttherope search [--levels ...] [--nodes N] [--write]
+        Run the oracle search (oracle.py) on the stored levels from scratch and report what
+        it finds; with --write store the best plan found where it has more stars than the
+        stored one, or the stored one no longer wins (after a change of the rules). Minutes.
+
+    deepphy solve --env cuttherope make [--levels ...] [--nodes N] [--needs] [--write] [--sheets DIR]
+        Turn designs (design.py) into level files: the oracle's 3-star plan (preferring one
+        that still wins with its sleeps moved by +-0.1 s), its sleeps centred in their
+        windows, the quick checks (and with --needs, what the plan needs); --sheets writes
+        each level's first picture and key frames side by side. Minutes.
 
 `main(argv)` is the entry point (wired to `deepphy solve --env cuttherope ...`).
 """
@@ -26,106 +33,44 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import cv2
+import numpy as np
+
 from deepphy.envs.cuttherope import constants as C
-from deepphy.envs.cuttherope.design import BOX_STAGES, place_stars, proposal, uses_mechanic
-from deepphy.envs.cuttherope.level import BOXES, DesignInfo, Level, Solution, level_ids, load_level, save_level
-from deepphy.envs.cuttherope.oracle import Plan, reference_win_rate, replay, search, trajectory
-from deepphy.envs.cuttherope.sim import World, seconds_to_steps
-from deepphy.seeding import seeded_rng
+from deepphy.envs.cuttherope.calibrate import (
+    BASELINE_EPISODES,
+    at_rest,
+    element_actions,
+    first_actions_all_win,
+    grid_share,
+    needs,
+    reference_baseline,
+)
+from deepphy.envs.cuttherope.design import design, designed_ids
+from deepphy.envs.cuttherope.env import CutTheRopeEnv
+from deepphy.envs.cuttherope.level import Level, Solution, level_ids, load_level, save_level
+from deepphy.envs.cuttherope.oracle import (
+    BEAM,
+    SEARCH_NODES,
+    Plan,
+    centre_sleeps,
+    play,
+    replay,
+    robustness,
+    search,
+    sleeps_of,
+)
 
-MAX_PROPOSALS = 60  # layouts tried per level before giving up
-SEARCH_NODES = 2000  # oracle budget per level for `search`, in simulated moves
-DESIGN_NODES = 1500  # oracle budget per proposal while designing, in simulated moves (machine-independent)
-REFERENCE_EPISODES = 100  # episodes of the reference random agent per level
-
-
-# -- design ----------------------------------------------------------------------------------------
-
-
-def design_one(box: int, stage_index: int, seed: int, nodes: int = DESIGN_NODES) -> dict | None:
-    """The first proposal of (box, stage, seed) that becomes a level (design.py's rules),
-    as {"level": Level (id not yet final), "difficulty": ...}; None if none did."""
-    stage = BOX_STAGES[box][stage_index]
-    for attempt in range(MAX_PROPOSALS):
-        rng = seeded_rng("cuttherope-design", box, stage.name, seed, attempt)
-        try:
-            level = proposal(box, stage, rng)
-        except ValueError:  # pydantic's ValidationError included: an impossible layout
-            continue
-        idle = World.from_level(level)
-        idle.run_on(seconds_to_steps(C.RUN_ON_CAP))
-        if idle.status == "won":
-            continue
-        idle_loss = idle.reason if idle.status == "lost" else ""
-        if stage.mechanic == "spider" and "spider" not in idle_loss:
-            continue
-
-        def accept(plan: Plan) -> bool:
-            _, _, events = trajectory(level, plan.actions)
-            return uses_mechanic(stage.mechanic, events, plan.texts, idle_loss)
-
-        found = search(level, budget_s=math.inf, max_nodes=nodes, accept=accept)
-        if found.best is None:
-            continue
-        plan = found.best
-        _, path, _ = trajectory(level, plan.actions)
-        stars = place_stars(rng, level, path)
-        if stars is None:
-            continue
-        level = level.model_copy(update={"stars": stars})
-        level = Level.model_validate(level.model_dump())
-        check = replay(level, plan.texts)
-        if not check["success"] or check["stars"] != 3:
-            continue
-        rate = reference_win_rate(level, seeded_rng("cuttherope-reference", box, stage.name, seed), REFERENCE_EPISODES)
-        if rate < stage.min_reference_rate:
-            continue
-        level = level.model_copy(update={
-            "solution": Solution(actions=plan.texts, stars=3, best_stars=3),
-            "design": DesignInfo(stage=stage.name, seed=seed, reference_win_rate=rate),
-        })
-        return {"level": level, "difficulty": (-rate, len(plan.texts), attempt)}
-    return None
+MOCK_RUNS = 3  # the runs of `deepphy run --model mock --runs 3 --seed 0`, the README's baseline row
+BASELINE_TARGET = (0.06, 0.16)  # the issue's target for the reference baseline over all levels (MOCK_RUNS runs)
+FIRST_WINS_MAX = 3  # at most this many levels (the first tutorials) where every first action wins
 
 
-def _design_job(args: tuple[int, int, int, int]) -> tuple[int, int, int, dict | None]:
-    box, stage_index, seed, nodes = args
-    return box, stage_index, seed, design_one(box, stage_index, seed, nodes)
-
-
-def generate(boxes: list[int], jobs: int, nodes: int) -> int:
-    work = [(box, s, seed, nodes) for box in boxes for s, stage in enumerate(BOX_STAGES[box])
-            for seed in range(stage.count)]
-    results: dict[tuple[int, int], list[dict]] = {}
-    start = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        for n, (box, s, seed, made) in enumerate(pool.map(_design_job, work), 1):
-            stage = BOX_STAGES[box][s]
-            if made is None:
-                print(f"box {box} stage {stage.name!r} seed {seed}: no level found", file=sys.stderr)
-                return 1
-            results.setdefault((box, s), []).append(made)
-            print(f"[{n}/{len(work)} {time.perf_counter() - start:.0f}s] box {box} {stage.name!r} seed {seed}: "
-                  f"{made['level'].solution.actions} reference win rate {made['level'].design.reference_win_rate:.2f}",
-                  file=sys.stderr)
-    for box in boxes:
-        number = 0
-        for s in range(len(BOX_STAGES[box])):
-            for made in sorted(results[(box, s)], key=lambda m: m["difficulty"]):
-                number += 1
-                level = made["level"].model_copy(update={"id": f"b{box}_l{number:02d}"})
-                save_level(Level.model_validate(level.model_dump()))
-        assert number == BOXES[box], (box, number)
-    return 0
-
-
-# -- report ----------------------------------------------------------------------------------------
+# -- report -------------------------------------------------------------------------------------------
 
 
 def report(ids: list[str]) -> dict:
@@ -136,79 +81,254 @@ def report(ids: list[str]) -> dict:
         check = replay(level, sol.actions) if sol else {"success": False, "stars": 0, "actions": 0, "outcome": "no plan"}
         rows.append({
             "level": level_id, "box": level.box, "proven": bool(check["success"]), "plan_stars": check["stars"] or 0,
-            "stored_stars": sol.stars if sol else None, "best_stars": sol.best_stars if sol else None,
-            "actions": len(sol.actions) if sol else None, "outcome": check["outcome"],
-            "reference_win_rate": level.design.reference_win_rate if level.design else None,
+            "stored_stars": sol.stars if sol else None, "actions": len(sol.actions) if sol else None,
+            "outcome": check["outcome"],
         })
     boxes = {}
     for box in sorted({r["box"] for r in rows}):
         rs = [r for r in rows if r["box"] == box]
-        rates = [r["reference_win_rate"] for r in rs if r["reference_win_rate"] is not None]
-        boxes[box] = {
-            "levels": len(rs), "proven": sum(r["proven"] for r in rs),
-            "plan_stars": sum(r["plan_stars"] for r in rs), "best_stars": sum(r["best_stars"] or 0 for r in rs),
-            "three_star_levels": sum((r["best_stars"] or 0) == 3 for r in rs),
-            "mean_actions": sum(r["actions"] or 0 for r in rs) / len(rs),
-            "reference_win_rate": sum(rates) / len(rates) if rates else None,
-        }
+        boxes[box] = {"levels": len(rs), "proven": sum(r["proven"] for r in rs),
+                      "plan_stars": sum(r["plan_stars"] for r in rs),
+                      "three_star_levels": sum(r["plan_stars"] == 3 for r in rs),
+                      "mean_actions": sum(r["actions"] or 0 for r in rs) / len(rs)}
     return {"levels": rows, "boxes": boxes}
 
 
 def print_report(data: dict) -> None:
-    # one word per column: plan_stars / best_stars = stars of the stored plans / the best the search found
-    # (summed over the box), 3star_levels = levels with a 3-star plan, plan_actions = mean actions of a
-    # stored plan, random_wins = the reference random agent's win rate
-    print(f"{'box':>4} {'levels':>6} {'proven':>6} {'plan_stars':>10} {'best_stars':>10} {'3star_levels':>12} "
-          f"{'plan_actions':>12} {'random_wins':>11}")
-    total = {"levels": 0, "proven": 0, "plan_stars": 0, "best_stars": 0, "three_star_levels": 0}
+    # one word per column: plan_stars = stars of the stored plans (summed over the box), 3star_levels =
+    # levels with a 3-star plan, plan_actions = mean actions of a stored plan (`calibrate` measures the rest)
+    print(f"{'box':>4} {'levels':>6} {'proven':>6} {'plan_stars':>10} {'3star_levels':>12} {'plan_actions':>12}")
+    total = {"levels": 0, "proven": 0, "plan_stars": 0, "three_star_levels": 0}
     for box, b in data["boxes"].items():
-        rate = "-" if b["reference_win_rate"] is None else f"{100 * b['reference_win_rate']:.1f}%"
-        print(f"{box:>4} {b['levels']:>6} {b['proven']:>6} {b['plan_stars']:>10} {b['best_stars']:>10} "
-              f"{b['three_star_levels']:>12} {b['mean_actions']:>12.1f} {rate:>11}")
+        print(f"{box:>4} {b['levels']:>6} {b['proven']:>6} {b['plan_stars']:>10} {b['three_star_levels']:>12} "
+              f"{b['mean_actions']:>12.1f}")
         for k in total:
             total[k] += b[k]
-    print(f"{'all':>4} {total['levels']:>6} {total['proven']:>6} {total['plan_stars']:>10} {total['best_stars']:>10} "
-          f"{total['three_star_levels']:>12}")
-    failed = [r for r in data["levels"] if not r["proven"]]
-    for r in failed:
-        print(f"NOT PROVEN: {r['level']}: {r['outcome']}")
+    print(f"{'all':>4} {total['levels']:>6} {total['proven']:>6} {total['plan_stars']:>10} {total['three_star_levels']:>12}")
+    for r in data["levels"]:
+        if not r["proven"]:
+            print(f"NOT PROVEN: {r['level']}: {r['outcome']}")
+
+
+# -- calibrate ------------------------------------------------------------------------------------------
+
+
+def calibrate_level(level: Level, episodes: int, seed: int, check_needs: bool) -> dict:
+    plan = level.solution.actions
+    base = reference_baseline(level, seed, episodes)
+    mock = base["wins_by_run"][:MOCK_RUNS]
+    grid = grid_share(level, element_actions(plan))
+    row = {
+        "level": level.id, "box": level.box, "title": level.title, "idea": level.idea, "plan": plan,
+        "plan_sleeps": len(sleeps_of(plan)), "baseline": base["rate"], "baseline_stars": base["stars"],
+        "mock_wins": sum(mock), "mock_runs": len(mock), "grid": grid, "robust": robustness(level, plan),
+        "first_actions_all_win": first_actions_all_win(level), "at_rest": at_rest(level),
+    }
+    if check_needs:
+        row["needs"] = needs(level)
+    return row
+
+
+def calibrate(ids: list[str], episodes: int, seed: int, check_needs: bool, log=print) -> dict:
+    rows = []
+    start = time.perf_counter()
+    for n, level_id in enumerate(ids, 1):
+        rows.append(calibrate_level(load_level(level_id), episodes, seed, check_needs))
+        log(f"[{n}/{len(ids)} {time.perf_counter() - start:.0f} s] {level_id}")
+    boxes = {}
+    for box in sorted({r["box"] for r in rows}):
+        rs = [r for r in rows if r["box"] == box]
+        boxes[box] = _summary(rs)
+    return {"episodes": episodes, "seed": seed, "levels": rows, "boxes": boxes, "all": _summary(rows),
+            "targets": _targets(rows, check_needs)}
+
+
+def _summary(rows: list[dict]) -> dict:
+    stars = [s for r in rows for s in r["baseline_stars"]]
+    robust = [r for r in rows if r["robust"]["won"] == r["robust"]["variants"]]
+    return {
+        "levels": len(rows),
+        "baseline": sum(r["baseline"] for r in rows) / len(rows),
+        "mock": sum(r["mock_wins"] for r in rows) / sum(r["mock_runs"] for r in rows),
+        "baseline_stars_per_win": sum(stars) / len(stars) if stars else None,
+        "grid_won": sum(r["grid"]["won"] for r in rows) / sum(r["grid"]["plans"] for r in rows),
+        "grid_three_stars": sum(r["grid"]["three_stars"] for r in rows) / sum(r["grid"]["plans"] for r in rows),
+        "robust": len(robust),
+        "not_needed": sum(v == "NOT NEEDED" for r in rows for v in r.get("needs", {}).values()),
+    }
+
+
+def _targets(rows: list[dict], check_needs: bool) -> list[dict]:
+    """The issue's targets, each with its figure and whether it is met."""
+    first3 = [r for r in rows if r["level"] in ("b1_l01", "b1_l02", "b1_l03")]
+    mock = sum(r["mock_wins"] for r in rows) / sum(r["mock_runs"] for r in rows)
+    by_box = {}
+    for r in rows:
+        by_box.setdefault(r["box"], []).append(r["mock_wins"])
+    fragile = [r["level"] for r in rows if r["robust"]["won"] < r["robust"]["variants"]]
+    all_win = [r["level"] for r in rows if r["first_actions_all_win"]]
+    out = [
+        {"target": "every stored plan wins with every sleep moved by +-0.1 s", "met": not fragile,
+         "figure": f"{len(rows) - len(fragile)} of {len(rows)} robust" + (f"; not: {', '.join(fragile)}" if fragile else "")},
+        {"target": "the first three levels of box 1 are won without any sleep",
+         "met": len(first3) == 3 and all(r["plan_sleeps"] == 0 for r in first3),
+         "figure": ", ".join(f"{r['level']}: {r['plan_sleeps']} sleeps" for r in first3)},
+        {"target": f"reference baseline over all levels {100 * BASELINE_TARGET[0]:g}-{100 * BASELINE_TARGET[1]:g} % "
+                   f"({MOCK_RUNS} runs, seed 0), no box at 0 %",
+         "met": BASELINE_TARGET[0] <= mock <= BASELINE_TARGET[1] and all(sum(w) > 0 for w in by_box.values()),
+         "figure": f"{100 * mock:.1f} %; by box " + ", ".join(f"b{b} {100 * sum(w) / (MOCK_RUNS * len(w)):.1f} %"
+                                                              for b, w in sorted(by_box.items()))},
+        {"target": f"at most {FIRST_WINS_MAX} levels where every first action wins", "met": len(all_win) <= FIRST_WINS_MAX,
+         "figure": ", ".join(all_win) or "none"},
+    ]
+    if check_needs:
+        missing = [f"{r['level']} {k}" for r in rows for k, v in r["needs"].items() if v == "NOT NEEDED"]
+        out.append({"target": "every element is needed for three stars", "met": not missing,
+                    "figure": f"{sum(len(r['needs']) for r in rows) - len(missing)} of {sum(len(r['needs']) for r in rows)}"
+                              + (f"; not: {', '.join(missing)}" if missing else "")})
+    return out
+
+
+def _stars(stars: list[int]) -> str:
+    return " ".join(f"{s}*x{stars.count(s)}" for s in range(4) if stars.count(s)) or "-"
+
+
+def print_calibration(data: dict) -> None:
+    print(f"{'level':7} {'acts':>4} {'base':>5} {'rnd stars':>11} {'grid won/3*':>12} {'robust':>7} {'1st':>3} "
+          f"{'rest':>4}  needs")
+    for r in data["levels"]:
+        g, rb = r["grid"], r["robust"]
+        needs_text = " ".join(f"{k}:{v}" for k, v in r.get("needs", {}).items())
+        robust = f"{rb['won']}/{rb['variants']}" if rb["variants"] else "-"
+        print(f"{r['level']:7} {element_actions(r['plan']):>4} {100 * r['baseline']:>4.0f}% {_stars(r['baseline_stars']):>11} "
+              f"{100 * g['won'] / g['plans']:>5.0f}%/{100 * g['three_stars'] / g['plans']:>4.0f}% {robust:>7} "
+              f"{'yes' if r['first_actions_all_win'] else 'no':>3} {'yes' if r['at_rest'] else 'NO':>4}  {needs_text}")
+    print()
+    print(f"{'box':>4} {'levels':>6} {'baseline':>8} {'mock':>6} {'rnd stars':>9} {'grid won':>8} {'grid 3*':>7} "
+          f"{'robust':>6} {'unneeded':>8}")
+    for name, b in [*((str(k), v) for k, v in data["boxes"].items()), ("all", data["all"])]:
+        spw = "-" if b["baseline_stars_per_win"] is None else f"{b['baseline_stars_per_win']:.2f}"
+        print(f"{name:>4} {b['levels']:>6} {100 * b['baseline']:>7.1f}% {100 * b['mock']:>5.1f}% {spw:>9} "
+              f"{100 * b['grid_won']:>7.1f}% {100 * b['grid_three_stars']:>6.1f}% {b['robust']:>6} {b['not_needed']:>8}")
+    print()
+    for t in data["targets"]:
+        print(f"[{'met' if t['met'] else 'NOT MET'}] {t['target']}: {t['figure']}")
 
 
 # -- search ----------------------------------------------------------------------------------------
 
 
-def _search_job(args: tuple[str, int]) -> dict:
-    level_id, nodes = args
-    level = load_level(level_id)
-    found = search(level, budget_s=math.inf, max_nodes=nodes)
-    best = found.best
-    return {"level": level_id, "found": best is not None, "stars": best.stars if best else None,
-            "plan": best.texts if best else None, "nodes": found.nodes, "seconds": round(found.seconds, 1)}
+def _still_wins(level: Level, plan: Solution) -> bool:
+    """The stored plan still wins with its stars, using all its actions."""
+    out = replay(level, plan.actions)
+    return out["success"] and out["stars"] == plan.stars and out["actions"] == len(plan.actions)
 
 
-def run_search(ids: list[str], nodes: int, jobs: int, write: bool) -> int:
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        results = list(pool.map(_search_job, [(i, nodes) for i in ids]))
-    for r in results:
-        print(f"{r['level']}: " + (f"{r['stars']} star(s) in {len(r['plan'])} actions {r['plan']}" if r["found"]
-                                   else "no plan found") + f"  ({r['nodes']} moves, {r['seconds']} s)")
-        if write and r["found"]:
-            level = load_level(r["level"])
-            stored = level.solution
-            if stored is None or r["stars"] > stored.stars:
-                check = replay(level, r["plan"])
-                if check["success"]:
-                    save_level(level.model_copy(update={"solution": Solution(
-                        actions=r["plan"], stars=check["stars"], best_stars=check["stars"])}))
-            elif r["stars"] > stored.best_stars:
-                save_level(level.model_copy(update={"solution": stored.model_copy(update={"best_stars": r["stars"]})}))
-    for box in sorted({r["level"][:2] for r in results}):
-        rs = [r for r in results if r["level"].startswith(box)]
-        found = [r for r in rs if r["found"]]
-        print(f"box {box[1]}: plans for {len(found)} of {len(rs)} levels, {sum(r['stars'] for r in found)} stars, "
-              f"{sum(r['stars'] == 3 for r in found)} with 3 stars")
-    print(f"found plans for {sum(r['found'] for r in results)} of {len(results)} levels")
+def run_search(ids: list[str], nodes: int, write: bool) -> int:
+    found_any = 0
+    for level_id in ids:
+        level = load_level(level_id)
+        best = search(level, max_nodes=nodes).best
+        print(f"{level_id}: " + (f"{best.stars} star(s) in {len(best.texts)} actions {best.texts}" if best
+                                 else "no plan found"), flush=True)
+        if best is None:
+            continue
+        found_any += 1
+        stored = level.solution
+        if write and (stored is None or not _still_wins(level, stored) or best.stars > stored.stars):
+            check = replay(level, best.texts)
+            if check["success"]:
+                save_level(level.model_copy(update={"solution": Solution(
+                    actions=best.texts, stars=check["stars"], best_stars=check["stars"])}))
+    print(f"found plans for {found_any} of {len(ids)} levels")
     return 0
+
+
+# -- make: design -> level file ---------------------------------------------------------------------
+
+
+def make_level(level_id: str, nodes: int, check_needs: bool, beam: int = BEAM) -> dict:
+    """Turn a design into a level: search its 3-star plan, preferring one that still wins
+    with its sleeps centred and moved by +-0.1 s, and measure it. {"made": the level with
+    its plan (or None), and the figures}."""
+    level = design(level_id)
+    row = {"level": level_id, "at_rest": at_rest(level)}
+    centred: dict[tuple[str, ...], list[str]] = {}
+
+    def robust(plan: Plan) -> bool:
+        if plan.stars < 3:
+            return False
+        texts = centre_sleeps(level, plan.texts)
+        if play(level, texts) != (True, 3):
+            texts = plan.texts
+        centred[tuple(plan.texts)] = texts
+        r = robustness(level, texts)
+        return r["won"] == r["variants"]
+
+    found = search(level, max_nodes=nodes, beam=beam, accept=robust)
+    if found.best is None:  # no robust plan: the best plan there is
+        found = search(level, max_nodes=nodes, beam=beam)
+    row["nodes"] = found.nodes
+    if found.best is None or found.best.stars < 3:
+        row["found"] = found.best.texts if found.best else None
+        row["found_stars"] = found.best.stars if found.best else 0
+        return {**row, "made": None}
+    texts = centred.get(tuple(found.best.texts)) or centre_sleeps(level, found.best.texts)
+    check = replay(level, texts)
+    if not (check["success"] and check["stars"] == 3 and check["actions"] == len(texts)):
+        texts = found.best.texts
+        check = replay(level, texts)
+    made = level.model_copy(update={"solution": Solution(actions=texts, stars=check["stars"], best_stars=3)})
+    base = reference_baseline(made)
+    row.update(plan=texts, stars=check["stars"], robust=robustness(made, texts), baseline=base["rate"],
+               baseline_stars=base["stars"], first_actions_all_win=first_actions_all_win(made))
+    if check_needs:
+        row["needs"] = needs(made, nodes)
+    return {**row, "made": made}
+
+
+def make(ids: list[str], nodes: int, write: bool, check_needs: bool, sheets: Path | None, beam: int = BEAM) -> int:
+    missing = 0
+    for level_id in ids:
+        start = time.process_time()
+        out = make_level(level_id, nodes, check_needs, beam)
+        made = out.pop("made")
+        line = f"{level_id}: "
+        if made is None:
+            missing += 1
+            line += f"NO 3-STAR PLAN (best {out.get('found_stars')} stars: {out.get('found')})"
+        else:
+            r = out["robust"]
+            line += (f"{out['plan']} | robust {r['won']}/{r['variants']} (3* {r['three_stars']}) | "
+                     f"baseline {100 * out['baseline']:.0f}% stars {_stars(out['baseline_stars'])} | "
+                     f"any-first-wins {out['first_actions_all_win']}")
+            if "needs" in out:
+                line += " | needs " + " ".join(f"{k}:{v}" for k, v in out["needs"].items())
+            if write:
+                save_level(made)
+            if sheets:
+                sheets.mkdir(parents=True, exist_ok=True)
+                contact_sheet(made, made.solution.actions, sheets / f"{level_id}.png")
+        line += f" | at rest {out['at_rest']} | {out['nodes']} moves, {time.process_time() - start:.0f} s CPU"
+        print(line, flush=True)
+    return 1 if missing else 0
+
+
+def contact_sheet(level: Level, texts: list[str], path: Path, scale: float = 0.5) -> Path:
+    """The level's first picture and the key frame of each action of `texts`, side by side."""
+    env = CutTheRopeEnv()
+    obs = env.start(level)
+    frames = [obs.images[0].to_array()]
+    for text in texts:
+        result = env.step(obs.action_space.parse(text))
+        frames += [f.to_array() for f in result.key_frames]
+        if result.done:
+            break
+        obs = result.observation
+    size = (int(C.WIDTH * scale), int(C.HEIGHT * scale))
+    sheet = np.hstack([cv2.resize(f, size, interpolation=cv2.INTER_AREA) for f in frames])
+    cv2.imwrite(str(path), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))
+    return path
 
 
 # -- command line ----------------------------------------------------------------------------------
@@ -221,18 +341,26 @@ def main(argv: list[str] | None = None) -> int:
     rep = sub.add_parser("report", help="replay every stored plan; print the solvability report")
     rep.add_argument("--levels", help="comma-separated level ids (default: all 88)")
     rep.add_argument("--json", help="also write the report as JSON to this file")
+    cal = sub.add_parser("calibrate", help="what each level measures (baseline, timing grid, robustness, needs)")
+    cal.add_argument("--levels")
+    cal.add_argument("--episodes", type=int, default=BASELINE_EPISODES, help="reference-baseline episodes per level")
+    cal.add_argument("--seed", type=int, default=0, help="the run seed whose MOCK draws the baseline replays")
+    cal.add_argument("--no-needs", action="store_true", help="skip what each element is needed for (the slow part)")
+    cal.add_argument("--json", help="also write the calibration as JSON to this file")
     sea = sub.add_parser("search", help="run the oracle search on the stored levels")
     sea.add_argument("--levels")
     sea.add_argument("--nodes", type=int, default=SEARCH_NODES, help="search budget per level (simulated moves)")
-    sea.add_argument("--jobs", type=int, default=1)
     sea.add_argument("--write", action="store_true", help="store plans with more stars than the stored ones")
-    gen = sub.add_parser("generate", help="remake the level files of some boxes (design.py)")
-    gen.add_argument("--boxes", default="1,2,3,4,5")
-    gen.add_argument("--jobs", type=int, default=1)
-    gen.add_argument("--nodes", type=int, default=DESIGN_NODES, help="search budget per proposal (simulated moves)")
+    mk = sub.add_parser("make", help="turn designs (design.py) into level files: plan, centred sleeps, checks")
+    mk.add_argument("--levels", help="comma-separated level ids (default: every designed level)")
+    mk.add_argument("--nodes", type=int, default=SEARCH_NODES, help="search budget (simulated moves)")
+    mk.add_argument("--write", action="store_true", help="write the level files")
+    mk.add_argument("--needs", action="store_true", help="also check that every element is needed (slow)")
+    mk.add_argument("--sheets", help="write each level's contact sheet (first picture, key frames) here")
+    mk.add_argument("--beam", type=int, default=BEAM, help="moves the search keeps per layer")
     args = parser.parse_args(argv)
 
-    ids = level_ids()
+    ids = designed_ids() if args.command == "make" else level_ids()
     if getattr(args, "levels", None):
         wanted = [s.strip() for s in args.levels.split(",") if s.strip()]
         unknown = [i for i in wanted if i not in ids]
@@ -245,12 +373,18 @@ def main(argv: list[str] | None = None) -> int:
         if args.json:
             Path(args.json).write_text(json.dumps(data, indent=1) + "\n")
         return 0 if all(r["proven"] for r in data["levels"]) else 1
+    if args.command == "calibrate":
+        if args.episodes < 1:
+            parser.error("--episodes must be at least 1")
+        data = calibrate(ids, args.episodes, args.seed, not args.no_needs,
+                         log=lambda line: print(line, file=sys.stderr, flush=True))
+        print_calibration(data)
+        if args.json:
+            Path(args.json).write_text(json.dumps(data, indent=1) + "\n")
+        return 0
     if args.command == "search":
-        return run_search(ids, args.nodes, args.jobs, args.write)
-    boxes = [int(b) for b in args.boxes.split(",")]
-    if any(b not in BOXES for b in boxes):
-        parser.error(f"boxes are {', '.join(map(str, BOXES))}")
-    return generate(boxes, args.jobs, args.nodes)
+        return run_search(ids, args.nodes, args.write)
+    return make(ids, args.nodes, args.write, args.needs, Path(args.sheets) if args.sheets else None, args.beam)
 
 
 if __name__ == "__main__":

@@ -1,18 +1,19 @@
 """The Cut the Rope action syntax (the reference benchmark's vocabulary):
 
-    cut_pin(id)                    cut the rope of pin P<id>
-    cut_active_pin(id)             cut the rope of active pin A<id> (or remove it before it catches the candy)
+    cut_pin(id, ...)               cut the rope of pin P<id>; several ids: those ropes at the same moment
+    cut_active_pin(id, ...)        cut the rope of active pin A<id> (or remove it before it catches the candy)
     pop_bubble(id)                 pop bubble B<id>
     tap_air_cushion(id, times=n)   n puffs of air cushion C<id>, n in {1, 3, 5}
     sleep(seconds)                 let the world run, 0.1 <= seconds <= 10
     success()                      declare the level won: the world runs on to decide it
-    fail()                         give up the level
+    fail()                         stop acting: the world runs on and the game decides
 
 The space carries what can be named now (pins with a rope, active pins not yet cut,
 bubbles not popped, all cushions, and which cushions were tapped): it travels in every
 observation, so MOCK and the model server can sample and parse without the simulator.
 An id that is not on the screen (or no longer there), a value out of range, or text
-with no action is invalid. When a reply names several actions the last one counts.
+with no action is invalid. When a reply names several actions the last one counts; one
+cut action may name several ropes, cut at the same moment (the game's long swipe).
 
 Light module (no pymunk).
 """
@@ -20,6 +21,7 @@ Light module (no pymunk).
 from __future__ import annotations
 
 import re
+from itertools import combinations
 from typing import Literal, Sequence
 
 import numpy as np
@@ -38,9 +40,12 @@ ELEMENT_ACTIONS = {  # action -> (label letter on the image, element noun, space
 LABEL_NOUNS = {"P": "pin", "A": "active pin", "B": "bubble", "C": "air cushion"}
 
 
+MULTI_CUTS = ("cut_pin", "cut_active_pin")  # the actions that may name several elements (one long swipe)
+
+
 class CutAction(Action):
     name: ActionName
-    id: int | None = None  # the element's number (P<id>, A<id>, B<id>, C<id>)
+    ids: tuple[int, ...] = ()  # the elements' numbers (P<id>, A<id>, B<id>, C<id>): one, or several cuts at once
     times: int | None = None  # tap_air_cushion
     seconds: float | None = None  # sleep
 
@@ -140,9 +145,18 @@ class CutSpace(ActionSpace):
                 raise InvalidAction("times given twice")
             ident = self._id(name, _unquote(args[0]))
             n = self._times(_unquote(times[0])) if times else 1
-            return CutAction(name=name, id=ident, times=n)
+            return CutAction(name=name, ids=(ident,), times=n)
+        if name in MULTI_CUTS:
+            extra = [k for k in keyword if k not in _ID_KEYS]
+            values = positional + [keyword[k] for k in keyword if k in _ID_KEYS]
+            if extra or not values or len(values) > 9:
+                raise InvalidAction(f"{name} takes one or more ids, e.g. {name}(1) or {name}(1, 3)")
+            ids = [self._id(name, _unquote(v)) for v in values]
+            if len(set(ids)) != len(ids):
+                raise InvalidAction(f"{name}: an id is named twice")
+            return CutAction(name=name, ids=tuple(sorted(ids)))
         value = self._one_arg(name, positional, keyword, _ID_KEYS, "id")
-        return CutAction(name=name, id=self._id(name, value))
+        return CutAction(name=name, ids=(self._id(name, value),))
 
     @staticmethod
     def _one_arg(name: str, positional: list[str], keyword: dict[str, str], keys: set[str], what: str) -> str:
@@ -191,11 +205,13 @@ class CutSpace(ActionSpace):
     # -- sample / reference baseline -------------------------------------------------------
 
     def element_actions(self, tap_times: Sequence[int] = TAP_TIMES) -> list[CutAction]:
-        """Every action on an element that can be named now, in a fixed order."""
-        return ([CutAction(name="cut_pin", id=i) for i in self.pins]
-                + [CutAction(name="cut_active_pin", id=i) for i in self.active_pins]
-                + [CutAction(name="pop_bubble", id=i) for i in self.bubbles]
-                + [CutAction(name="tap_air_cushion", id=i, times=n)
+        """Every action on elements that can be named now, in a fixed order: each rope cut
+        alone, then each pair of ropes cut together, bubbles, cushion taps."""
+        cuts = [(name, ids) for name, ids in (("cut_pin", self.pins), ("cut_active_pin", self.active_pins))]
+        return ([CutAction(name=name, ids=(i,)) for name, ids in cuts for i in ids]
+                + [CutAction(name=name, ids=pair) for name, ids in cuts for pair in combinations(ids, 2)]
+                + [CutAction(name="pop_bubble", ids=(i,)) for i in self.bubbles]
+                + [CutAction(name="tap_air_cushion", ids=(i,), times=n)
                    for i in range(1, self.num_cushions + 1) for n in tap_times])
 
     def valid_actions(self) -> list[CutAction]:
@@ -213,12 +229,13 @@ class CutSpace(ActionSpace):
 
     def reference_reply(self, rng: np.random.Generator, earlier: Sequence[str] = ()) -> str:
         """The reference benchmark's random agent: uniform among cutting each pin and active
-        pin not used yet, popping each bubble present, and one tap of each cushion not
-        tapped yet; fail() when nothing is left; never sleep() or success()."""
-        choices = ([CutAction(name="cut_pin", id=i) for i in self.pins]
-                   + [CutAction(name="cut_active_pin", id=i) for i in self.active_pins]
-                   + [CutAction(name="pop_bubble", id=i) for i in self.bubbles]
-                   + [CutAction(name="tap_air_cushion", id=i, times=1)
+        pin not used yet (one at a time), popping each bubble present, and one tap of each
+        cushion not tapped yet; fail() when nothing is left (the world then runs on and the
+        game decides); never sleep() or success()."""
+        choices = ([CutAction(name="cut_pin", ids=(i,)) for i in self.pins]
+                   + [CutAction(name="cut_active_pin", ids=(i,)) for i in self.active_pins]
+                   + [CutAction(name="pop_bubble", ids=(i,)) for i in self.bubbles]
+                   + [CutAction(name="tap_air_cushion", ids=(i,), times=1)
                       for i in range(1, self.num_cushions + 1) if i not in self.cushions_tapped])
         if not choices:
             return self.format(CutAction(name="fail"))
@@ -233,8 +250,8 @@ class CutSpace(ActionSpace):
         if action.name == "sleep":
             return f"sleep({format_seconds(action.seconds)})"
         if action.name == "tap_air_cushion":
-            return f"tap_air_cushion({action.id}, times={action.times})"
-        return f"{action.name}({action.id})"
+            return f"tap_air_cushion({action.ids[0]}, times={action.times})"
+        return f"{action.name}({', '.join(map(str, action.ids))})"
 
 
 def format_seconds(seconds: float | None) -> str:
