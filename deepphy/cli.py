@@ -1,4 +1,4 @@
-"""The `deepphy` command: run, report, envs, show, watch, solve, dashboard, plot, export."""
+"""The `deepphy` command: run, report, leaderboard, envs, show, watch, solve, dashboard, plot, export."""
 
 from __future__ import annotations
 
@@ -55,6 +55,14 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
                      help="run directories of one environment (e.g. VLA, WM and MOCK) for one combined table")
     fmt = rep.add_mutually_exclusive_group()
+    for flag in ("json", "csv", "markdown", "latex"):
+        fmt.add_argument(f"--{flag}", action="store_true", help=f"print {flag} instead of a text table")
+
+    board = sub.add_parser("leaderboard", help="the master table across run directories: a row per model x format, "
+                           "a column group per environment")
+    board.add_argument("paths", nargs="+", metavar="ROOT_OR_RUN_DIR",
+                       help="run directories, or directories holding them (a suite root) up to three folders down")
+    fmt = board.add_mutually_exclusive_group()
     for flag in ("json", "csv", "markdown", "latex"):
         fmt.add_argument(f"--{flag}", action="store_true", help=f"print {flag} instead of a text table")
 
@@ -199,6 +207,32 @@ def cmd_report(args: argparse.Namespace) -> int:
     if note and render is not render_text:  # the text table says so itself
         print(f"deepphy: warning: {note}", file=sys.stderr)
     print(render(reports))
+    return 0
+
+
+def cmd_leaderboard(args: argparse.Namespace) -> int:
+    from deepphy.dashboard.source import runs_in
+    from deepphy.metrics import leaderboard as L
+    from deepphy.metrics.report import report_of
+
+    run_dirs: list[Path] = []
+    for path in map(Path, args.paths):
+        if not path.is_dir():
+            raise UserError(f"{path} is not a directory")
+        found = runs_in(path)
+        if not found:
+            raise UserError(f"{path} holds no run directory (none up to three folders down)")
+        run_dirs += found
+    run_dirs = list(dict.fromkeys(p.resolve() for p in run_dirs))
+    try:
+        board = L.leaderboard([report_of(d) for d in run_dirs], [_shown_path(str(d)) for d in run_dirs])
+    except L.LeaderboardError as e:
+        raise UserError(str(e)) from None
+    render = (L.render_json if args.json else L.render_csv if args.csv else L.render_markdown if args.markdown
+              else L.render_latex if args.latex else L.render_text)
+    for note in board.notes if render is not L.render_text else ():  # the text table says so itself
+        print(f"deepphy: warning: {note}", file=sys.stderr)
+    print(render(board))
     return 0
 
 
@@ -419,7 +453,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_show, "watch": cmd_watch,
+COMMANDS = {"run": cmd_run, "report": cmd_report, "leaderboard": cmd_leaderboard, "envs": cmd_envs, "show": cmd_show, "watch": cmd_watch,
             "solve": cmd_solve, "dashboard": cmd_dashboard, "plot": cmd_plot, "export": cmd_export,
             "repair": cmd_repair}
 
