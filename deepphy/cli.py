@@ -50,6 +50,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="place environment workers only on nodes with this custom Ray resource")
     run.add_argument("--max-in-flight", type=int, default=256, help="episodes in progress at once; default 256")
     run.add_argument("--no-progress", action="store_true", help="no live progress line")
+    run.add_argument("--dry-run", action="store_true",
+                     help="print what the run would ask of its model (requests, images, input tokens measured on the "
+                          "rendered prompts of its first tasks, cost, time at the rate limit) without calling it or "
+                          "writing anything")
 
     rep = sub.add_parser("report", help="print the paper-style table of one or more run directories")
     rep.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
@@ -169,6 +173,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         err = e.errors()[0]
         where = ".".join(map(str, err["loc"]))
         raise UserError(f"{where + ': ' if where else ''}{err['msg'].removeprefix('Value error, ')}") from None
+    if args.dry_run:
+        from deepphy.estimate import estimate, render
+
+        print(render([estimate(config, runtime.models_file)]))
+        return 0
     outcome = evaluate(config, args.out, runtime)
     lines, status = run_summary(outcome)
     print(lines[0])
