@@ -114,19 +114,31 @@ class CellEstimate:
     sampled: int
 
 
-def estimate(config: RunConfig, models_file: str | None = None, sample: int = DEFAULT_SAMPLE,
-             label: str | None = None) -> CellEstimate:
-    """Measure the prompts of `config`'s first `sample` tasks and bound the whole run."""
+@dataclass(frozen=True)
+class TaskPrompts:
+    """One task's measured prompts: the first request, and what one failed attempt and
+    one earlier decision add to it."""
+
+    first: PromptSize
+    per_attempt: PromptSize
+    per_step: PromptSize
+
+
+_measured: dict[str, list[TaskPrompts]] = {}  # the prompts do not depend on the model: a suite measures once
+
+
+def measure(config: RunConfig, sample: int = DEFAULT_SAMPLE) -> list[TaskPrompts]:
+    """Render and measure the prompts of `config`'s first `sample` tasks (see the module)."""
     from deepphy.runner import resolve
 
-    spec, tasks, k_max = resolve(config)
-    endpoint: ModelConfig | None = endpoint_config(config.model, models_file)
+    key = config.model_copy(update={"model": "", "runs": 1}).model_dump_json() + f"/{sample}"
+    if key in _measured:
+        return _measured[key]
+    spec, tasks, _ = resolve(config)
     env_cls = spec.load()
     env = env_cls(env_cls.Options(**config.env_options))
     prompt = spec.load_prompt()
-    recent_cap = prompt.recent_steps_shown
-    steps = spec.max_steps
-    firsts, per_attempt, per_step = [], [], []
+    out = []
     for task in tasks[:sample]:
         observation = env.reset(task)
         first = prompt_size(build_messages(prompt, config.format, task, observation, []))
@@ -134,7 +146,7 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
         text = space.reference_reply(seeded_rng("estimate", config.seed, config.env, task.id), [])
         try:
             result = env.step(space.parse(text))
-            frames, feedback = [f for f in result.key_frames], result.feedback
+            frames, feedback = list(result.key_frames), result.feedback
         except ValueError:  # the baseline's refusal (PHYRE's one in ten): no frames to show
             frames, feedback = [], "invalid"
         frames = [Image(name=f.name, caption=f.caption, png=f.png) for f in frames]
@@ -144,9 +156,24 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
         after_attempt = prompt_size(build_messages(prompt, config.format, task, observation, [past]))
         after_step = prompt_size(build_messages(prompt, config.format, task, observation, [], [
             PastStep(step=1, action=text, feedback=feedback, frame=observation.images[0])]))
-        firsts.append(first)
-        per_attempt.append(after_attempt - first)
-        per_step.append(after_step - first)
+        out.append(TaskPrompts(first, after_attempt - first, after_step - first))
+    _measured[key] = out
+    return out
+
+
+def estimate(config: RunConfig, models_file: str | None = None, sample: int = DEFAULT_SAMPLE,
+             label: str | None = None) -> CellEstimate:
+    """Measure the prompts of `config`'s first `sample` tasks and bound the whole run."""
+    from deepphy.runner import resolve
+
+    spec, tasks, k_max = resolve(config)
+    endpoint: ModelConfig | None = endpoint_config(config.model, models_file)
+    measured = measure(config, sample)
+    recent_cap = spec.load_prompt().recent_steps_shown
+    steps = spec.max_steps
+    firsts = [m.first for m in measured]
+    per_attempt = [m.per_attempt for m in measured]
+    per_step = [m.per_step for m in measured]
 
     cap = endpoint.resolved_max_images if endpoint is not None else None
     rule = IMAGE_TOKEN_RULES[endpoint.provider] if endpoint is not None else None
