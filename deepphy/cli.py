@@ -270,19 +270,31 @@ def cmd_report(args: argparse.Namespace) -> int:
 def cmd_leaderboard(args: argparse.Namespace) -> int:
     from deepphy.dashboard.source import runs_in
     from deepphy.metrics import leaderboard as L
-    from deepphy.metrics.report import report_of
+    from deepphy.metrics.report import build_report, report_of
+    from deepphy.runner import resolve
+    from deepphy.suite import MANIFEST, SuiteError, read_manifest
 
-    run_dirs: list[Path] = []
+    reports: dict[Path, dict] = {}
     for path in map(Path, args.paths):
         if not path.is_dir():
             raise UserError(f"{path} is not a directory")
         found = runs_in(path)
-        if not found:
+        for run_dir in found:
+            reports.setdefault(run_dir.resolve(), None)
+        if (path / MANIFEST).is_file():  # a suite's cells not started yet: shown as such
+            try:
+                listed = read_manifest(path)
+            except SuiteError as e:
+                raise UserError(str(e)) from None
+            for cell in listed:
+                if (path / cell.dir).resolve() not in reports:
+                    _, tasks, k_max = resolve(cell.config)
+                    reports[(path / cell.dir).resolve()] = build_report(cell.config, tasks, [], k_max)
+        elif not found:
             raise UserError(f"{path} holds no run directory (none up to three folders down)")
-        run_dirs += found
-    run_dirs = list(dict.fromkeys(p.resolve() for p in run_dirs))
     try:
-        board = L.leaderboard([report_of(d) for d in run_dirs], [_shown_path(str(d)) for d in run_dirs])
+        board = L.leaderboard([r if r is not None else report_of(d) for d, r in reports.items()],
+                              [_shown_path(str(d)) for d in reports])
     except L.LeaderboardError as e:
         raise UserError(str(e)) from None
     render = (L.render_json if args.json else L.render_csv if args.csv else L.render_markdown if args.markdown

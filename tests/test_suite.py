@@ -143,3 +143,12 @@ def test_a_killed_suite_resumes_to_the_records_of_an_uninterrupted_one(done, sui
     assert sum(o.new_records for o in outcomes) > 0
     for cell in read_manifest(done):
         assert views(root / cell.dir) == views(done / cell.dir), cell.dir
+
+
+def test_leaderboard_of_a_suite_shows_cells_not_started_as_unfinished(done, tmp_path, capsys):
+    root = tmp_path / "root"
+    root.mkdir()
+    (root / MANIFEST).write_bytes((done / MANIFEST).read_bytes())  # the suite, no cell run yet
+    assert main(["leaderboard", str(root), "--csv"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1:3] == ["mock VLA,unfinished 0/2,unfinished 0/2,", "mock WM,unfinished 0/2,unfinished 0/2,"]
