@@ -149,7 +149,6 @@ def measure(config: RunConfig, sample: int = DEFAULT_SAMPLE) -> list[TaskPrompts
             frames, feedback = list(result.key_frames), result.feedback
         except ValueError:  # the baseline's refusal (PHYRE's one in ten): no frames to show
             frames, feedback = [], "invalid"
-        frames = [Image(name=f.name, caption=f.caption, png=f.png) for f in frames]
         if spec.planning is Planning.ON_THE_FLY:
             frames = frames[-1:]  # as deepphy.protocol.past_attempt shows an earlier attempt
         past = PastAttempt(attempt=1, actions=[text], outcome=f"failed. {feedback}", key_frames=frames)

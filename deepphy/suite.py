@@ -196,7 +196,7 @@ def run_suite(suite: Suite, root: str | Path, runtime: RuntimeOptions, models: l
               stream=sys.stderr) -> list[CellOutcome]:
     """Run (or resume) every cell of `suite` into `root`, one after another in one Ray
     runtime (started here unless this process is connected already)."""
-    from deepphy.runner import EnvWorkerPool, _stop_ray, ensure_ray, evaluate, episodes_done
+    from deepphy.runner import EnvWorkerPool, ensure_ray, evaluate, episodes_done
     from deepphy.runs.store import _atomic_write
 
     root = Path(root)
@@ -224,7 +224,10 @@ def run_suite(suite: Suite, root: str | Path, runtime: RuntimeOptions, models: l
             outcomes.append(CellOutcome(cell, outcome.episodes_done, outcome.episodes_total, outcome.new_records))
     finally:
         pool.close()
-        _stop_ray(started)
+        if started:
+            import ray
+
+            ray.shutdown()
     return outcomes
 
 

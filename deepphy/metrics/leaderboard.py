@@ -152,7 +152,7 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
         for c in range(len(group.columns)):
             values = [cells[(r, g)][c] for r in range(len(rows)) if (r, g) in cells]
             scored = [x for x in values if x.unfinished is None and x.mean is not None]
-            if len(scored) > 1:
+            if len({x.mean for x in scored}) > 1:  # all equal: nothing is best
                 top = max(x.mean for x in scored)
                 for x in scored:
                     x.best = x.mean == top
