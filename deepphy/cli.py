@@ -97,7 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
     dash.add_argument("--port", type=int, default=8700, help="port; default 8700, 0 picks a free one")
 
     plot = sub.add_parser("plot", help="draw the paper's figures of one or more run directories (PNG and PDF)")
-    plot.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
+    plot.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
+                      help="run directories, or directories holding them (a suite root) up to three folders down")
     plot.add_argument("--out", required=True, help="directory for the figures")
 
     repair = sub.add_parser("repair", help="set aside what a resume cannot go on from (see the README's Run directory)")
@@ -477,10 +478,13 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
+    from deepphy.dashboard.source import runs_in
     from deepphy.metrics.report import mixed_task_sets, report_of
     from deepphy.plots import plot_all
 
-    reports = [report_of(run_dir) for run_dir in args.run_dirs]
+    # a suite root (or any directory of runs) stands for its run directories
+    run_dirs = [run for path in map(Path, args.run_dirs) for run in (runs_in(path) or [path])]
+    reports = [report_of(run_dir) for run_dir in dict.fromkeys(run_dirs)]
     for env in dict.fromkeys(r["env"] for r in reports):
         note = mixed_task_sets([r for r in reports if r["env"] == env])
         if note:

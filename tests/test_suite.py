@@ -152,3 +152,10 @@ def test_leaderboard_of_a_suite_shows_cells_not_started_as_unfinished(done, tmp_
     assert main(["leaderboard", str(root), "--csv"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[1:3] == ["mock VLA,unfinished 0/2,unfinished 0/2,", "mock WM,unfinished 0/2,unfinished 0/2,"]
+
+
+def test_plot_of_a_suite_root_draws_every_environment(done, tmp_path, capsys):
+    assert main(["plot", str(done), "--out", str(tmp_path / "fig")]) == 0
+    data = json.loads((tmp_path / "fig" / "figures.json").read_text())
+    assert {"cumulative_iphyre", "cumulative_phyre"} <= set(data)
+    assert data["cumulative_phyre"]["labels"] == ["mock VLA", "mock WM"]
