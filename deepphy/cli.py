@@ -1,4 +1,4 @@
-"""The `deepphy` command: run, report, envs, show, watch, solve, dashboard, play, plot, export."""
+"""The `deepphy` command: run, report, leaderboard, envs, show, watch, solve, dashboard, play, plot, export, repair."""
 
 from __future__ import annotations
 
@@ -28,20 +28,26 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
 
     run = sub.add_parser("run", help="run or resume an evaluation into a run directory")
-    run.add_argument("--env", default="iphyre", help="environment (see `deepphy envs`); default iphyre")
-    run.add_argument("--model", default="mock", help="model name; default mock (random valid actions)")
+    run.add_argument("--suite", metavar="NAME|FILE",
+                     help="run every cell of a suite (`paper`, or a suite YAML file) into --out, one run directory "
+                          "per cell, in one Ray runtime; the suite sets the environments, formats, runs and seed")
+    run.add_argument("--env", help="environment (see `deepphy envs`); default iphyre")
+    run.add_argument("--model", help="model name; default mock (random valid actions); with --suite, "
+                     "comma-separated models (default: the suite's)")
     run.add_argument("--models-file", help="YAML file of model endpoints (default: $DEEPPHY_MODELS_FILE, "
                      "else the shipped deepphy/models/models.yaml)")
     run.add_argument("--max-cost", type=float, metavar="USD",
-                     help="stop once the run's model cost reaches this (resume with a higher budget)")
-    run.add_argument("--format", default="vla", choices=["vla", "wm"], help="prompt format; default vla")
-    run.add_argument("--runs", type=int, default=3, help="repetitions of every task; default 3")
-    run.add_argument("--seed", type=int, default=0, help="seed of MOCK and of any sampling; default 0")
-    run.add_argument("--out", default=DEFAULT_OUT, help=f"run directory; default {DEFAULT_OUT}")
+                     help="stop once the run's model cost reaches this (resume with a higher budget); with "
+                          "--suite, per cell")
+    run.add_argument("--format", choices=["vla", "wm"], help="prompt format; default vla")
+    run.add_argument("--runs", type=int, help="repetitions of every task; default 3")
+    run.add_argument("--seed", type=int, help="seed of MOCK and of any sampling; default 0")
+    run.add_argument("--out", help=f"run directory (with --suite: the suite root); default {DEFAULT_OUT} "
+                     "(with --suite: runs/<suite name>)")
     run.add_argument("--tasks", help="comma-separated task ids (default: the evaluation set)")
     run.add_argument("--limit", type=int, help="only the first N tasks")
     run.add_argument("--max-attempts", type=int, help="attempts per task (default: the protocol's)")
-    run.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
+    run.add_argument("--env-option", action="append", metavar="KEY=VALUE",
                      help="environment option, e.g. annotate=false (repeatable)")
     run.add_argument("--address", help="join an existing Ray cluster (default: start a local one)")
     run.add_argument("--num-cpus", type=int, default=2, help="CPUs of the local cluster; default 2")
@@ -50,11 +56,23 @@ def build_parser() -> argparse.ArgumentParser:
                      help="place environment workers only on nodes with this custom Ray resource")
     run.add_argument("--max-in-flight", type=int, default=256, help="episodes in progress at once; default 256")
     run.add_argument("--no-progress", action="store_true", help="no live progress line")
+    run.add_argument("--dry-run", action="store_true",
+                     help="print what the run would ask of its model (requests, images, input tokens measured on the "
+                          "rendered prompts of its first tasks, cost, time at the rate limit) without calling it or "
+                          "writing anything")
 
     rep = sub.add_parser("report", help="print the paper-style table of one or more run directories")
     rep.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
                      help="run directories of one environment (e.g. VLA, WM and MOCK) for one combined table")
     fmt = rep.add_mutually_exclusive_group()
+    for flag in ("json", "csv", "markdown", "latex"):
+        fmt.add_argument(f"--{flag}", action="store_true", help=f"print {flag} instead of a text table")
+
+    board = sub.add_parser("leaderboard", help="the master table across run directories: a row per model x format, "
+                           "a column group per environment")
+    board.add_argument("paths", nargs="+", metavar="ROOT_OR_RUN_DIR",
+                       help="run directories, or directories holding them (a suite root) up to three folders down")
+    fmt = board.add_mutually_exclusive_group()
     for flag in ("json", "csv", "markdown", "latex"):
         fmt.add_argument(f"--{flag}", action="store_true", help=f"print {flag} instead of a text table")
 
@@ -96,7 +114,8 @@ def build_parser() -> argparse.ArgumentParser:
     play.add_argument("--port", type=int, default=8710, help="port; default 8710, 0 picks a free one")
 
     plot = sub.add_parser("plot", help="draw the paper's figures of one or more run directories (PNG and PDF)")
-    plot.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
+    plot.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
+                      help="run directories, or directories holding them (a suite root) up to three folders down")
     plot.add_argument("--out", required=True, help="directory for the figures")
 
     repair = sub.add_parser("repair", help="set aside what a resume cannot go on from (see the README's Run directory)")
@@ -158,32 +177,79 @@ def _depth(value: object) -> int:
     return deepest
 
 
-def cmd_run(args: argparse.Namespace) -> int:
-    from deepphy.runner import evaluate
+SUITE_SETS = ("env", "format", "runs", "seed", "tasks", "limit", "max_attempts", "env_option")  # run options a suite sets
 
+
+def _validated(make):
+    """`make()`, a Pydantic model built from flags: a validation error as one line."""
     try:
-        config = RunConfig(
-            env=args.env, model=args.model, format=args.format, runs=args.runs, seed=args.seed,
-            tasks=[t for t in args.tasks.split(",") if t] if args.tasks else None,
-            limit=args.limit, max_attempts=args.max_attempts, env_options=_env_options(args.env_option),
-        )
-        runtime = RuntimeOptions(
-            address=args.address, num_cpus=args.num_cpus, env_workers=args.env_workers,
-            env_resource=args.env_resource,
-            max_in_flight=args.max_in_flight, progress=not args.no_progress, max_cost_usd=args.max_cost,
-            # absolute: model workers may run in another directory
-            models_file=str(Path(args.models_file).resolve()) if args.models_file else None,
-        )
+        return make()
     except ValidationError as e:
         err = e.errors()[0]
         where = ".".join(map(str, err["loc"]))
         raise UserError(f"{where + ': ' if where else ''}{err['msg'].removeprefix('Value error, ')}") from None
-    outcome = evaluate(config, args.out, runtime)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from deepphy.runner import evaluate
+
+    runtime = _validated(lambda: RuntimeOptions(
+        address=args.address, num_cpus=args.num_cpus, env_workers=args.env_workers, env_resource=args.env_resource,
+        max_in_flight=args.max_in_flight, progress=not args.no_progress, max_cost_usd=args.max_cost,
+        # absolute: model workers may run in another directory
+        models_file=str(Path(args.models_file).resolve()) if args.models_file else None,
+    ))
+    if args.suite:
+        return run_suite_command(args, runtime)
+    if args.model and "," in args.model:
+        raise UserError("several models need --suite (one run directory holds one model)")
+    config = _validated(lambda: RunConfig(
+        env=args.env or "iphyre", model=args.model or "mock", format=args.format or "vla",
+        runs=args.runs if args.runs is not None else 3, seed=args.seed or 0,
+        tasks=[t for t in args.tasks.split(",") if t] if args.tasks else None,
+        limit=args.limit, max_attempts=args.max_attempts, env_options=_env_options(args.env_option or []),
+    ))
+    if args.dry_run:
+        from deepphy.estimate import estimate, render
+
+        print(render([estimate(config, runtime.models_file)]))
+        return 0
+    outcome = evaluate(config, args.out or DEFAULT_OUT, runtime)
     lines, status = run_summary(outcome)
     print(lines[0])
     for line in lines[1:]:
         print(line, file=sys.stdout if status == 0 else sys.stderr)
     return status
+
+
+def run_suite_command(args: argparse.Namespace, runtime: RuntimeOptions) -> int:
+    from deepphy import suite as S
+
+    given = [f"--{name.replace('_', '-')}" for name in SUITE_SETS if getattr(args, name) is not None]
+    if given:
+        raise UserError(f"{given[0]} is set by the suite; write it in a suite file instead")
+    try:
+        suite = S.load_suite(args.suite)
+        models = [m for m in args.model.split(",") if m] if args.model else None
+        root = Path(args.out or f"runs/{suite.name}")
+        if args.dry_run:
+            from deepphy.estimate import estimate, render
+
+            cells = S.cells(suite, models)
+            print(render([estimate(c.config, runtime.models_file, label=c.dir) for c in cells]))
+            return 0
+        outcomes = S.run_suite(suite, root, runtime, models)
+    except S.SuiteError as e:
+        raise UserError(str(e)) from None
+    complete = sum(o.done == o.total for o in outcomes)
+    for o in outcomes:
+        print(f"  {o.cell.dir}: {o.done}/{o.total} episodes complete ({o.new_records} new attempt records)")
+    print(f"suite {suite.name} in {root}: {complete}/{len(outcomes)} cells complete")
+    if complete < len(outcomes):
+        print("the suite is incomplete; run the same command again to resume it", file=sys.stderr)
+        return 1
+    print(f"next: deepphy leaderboard {root}")
+    return 0
 
 
 def run_summary(outcome) -> tuple[list[str], int]:
@@ -216,6 +282,44 @@ def cmd_report(args: argparse.Namespace) -> int:
     if note and render is not render_text:  # the text table says so itself
         print(f"deepphy: warning: {note}", file=sys.stderr)
     print(render(reports))
+    return 0
+
+
+def cmd_leaderboard(args: argparse.Namespace) -> int:
+    from deepphy.dashboard.source import runs_in
+    from deepphy.metrics import leaderboard as L
+    from deepphy.metrics.report import build_report, report_of
+    from deepphy.runner import resolve
+    from deepphy.suite import MANIFEST, SuiteError, read_manifest
+
+    reports: dict[Path, dict] = {}
+    for path in map(Path, args.paths):
+        if not path.is_dir():
+            raise UserError(f"{path} is not a directory")
+        found = runs_in(path)
+        for run_dir in found:
+            reports.setdefault(run_dir.resolve(), None)
+        if (path / MANIFEST).is_file():  # a suite's cells not started yet: shown as such
+            try:
+                listed = read_manifest(path)
+            except SuiteError as e:
+                raise UserError(str(e)) from None
+            for cell in listed:
+                if (path / cell.dir).resolve() not in reports:
+                    _, tasks, k_max = resolve(cell.config)
+                    reports[(path / cell.dir).resolve()] = build_report(cell.config, tasks, [], k_max)
+        elif not found:
+            raise UserError(f"{path} holds no run directory (none up to three folders down)")
+    try:
+        board = L.leaderboard([r if r is not None else report_of(d) for d, r in reports.items()],
+                              [_shown_path(str(d)) for d in reports])
+    except L.LeaderboardError as e:
+        raise UserError(str(e)) from None
+    render = (L.render_json if args.json else L.render_csv if args.csv else L.render_markdown if args.markdown
+              else L.render_latex if args.latex else L.render_text)
+    for note in board.notes if render is not L.render_text else ():  # the text table says so itself
+        print(f"deepphy: warning: {note}", file=sys.stderr)
+    print(render(board))
     return 0
 
 
@@ -454,10 +558,13 @@ def cmd_play(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
+    from deepphy.dashboard.source import runs_in
     from deepphy.metrics.report import mixed_task_sets, report_of
     from deepphy.plots import plot_all
 
-    reports = [report_of(run_dir) for run_dir in args.run_dirs]
+    # a suite root (or any directory of runs) stands for its run directories
+    run_dirs = [run for path in map(Path, args.run_dirs) for run in (runs_in(path) or [path])]
+    reports = [report_of(run_dir) for run_dir in dict.fromkeys(run_dirs)]
     for env in dict.fromkeys(r["env"] for r in reports):
         note = mixed_task_sets([r for r in reports if r["env"] == env])
         if note:
@@ -501,9 +608,9 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 INTERRUPTED = "deepphy: interrupted; run the same command again to resume"
 
-COMMANDS = {"run": cmd_run, "report": cmd_report, "envs": cmd_envs, "show": cmd_show, "watch": cmd_watch,
-            "solve": cmd_solve, "dashboard": cmd_dashboard, "play": cmd_play, "plot": cmd_plot, "export": cmd_export,
-            "repair": cmd_repair}
+COMMANDS = {"run": cmd_run, "report": cmd_report, "leaderboard": cmd_leaderboard, "envs": cmd_envs, "show": cmd_show,
+            "watch": cmd_watch, "solve": cmd_solve, "dashboard": cmd_dashboard, "play": cmd_play, "plot": cmd_plot,
+            "export": cmd_export, "repair": cmd_repair}
 
 
 def main(argv: list[str] | None = None) -> int:

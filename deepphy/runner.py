@@ -57,6 +57,47 @@ class RunOutcome:
         return self.episodes_done == self.episodes_total
 
 
+class EnvWorkerPool:
+    """Environment workers kept from one run to the next in one driver (a suite's cells):
+    a run of the same environment setting (environment and options) as the run before it
+    reuses that run's workers instead of starting processes and importing the simulator
+    again; a run of another setting stops them first (they hold the CPUs its workers
+    need). Their output goes to `log_dir`. `close()` stops them."""
+
+    def __init__(self, log_dir: Path) -> None:
+        self.log_dir = Path(log_dir)
+        self.id = uuid.uuid4().hex[:8]
+        self.setting: str | None = None
+        self.workers: list[Any] = []
+        self.started = 0  # settings whose workers were started
+
+    def get(self, spec: EnvSpec, options: dict[str, Any], runtime: RuntimeOptions, make: Callable[..., Any]) -> list[Any]:
+        import json
+
+        setting = spec.name + json.dumps(options, sort_keys=True)
+        if setting != self.setting:
+            self.close()
+            self.log_dir.mkdir(parents=True, exist_ok=True)
+            n, self.setting, self.started = self.started, setting, self.started + 1
+            self.workers = [
+                make(spec, options, name=f"deepphy/{self.id}/{n}-env{i}", resource=runtime.env_resource,
+                     log_path=str(self.log_dir / f"{n}-{spec.name}-env{i}.log"),
+                     max_concurrency=max(1000, runtime.max_in_flight))
+                for i in range(runtime.env_workers or _default_workers(runtime.env_resource))
+            ]
+        return self.workers
+
+    def close(self) -> None:
+        import ray
+
+        for worker in self.workers:
+            try:
+                ray.kill(worker)
+            except Exception:  # noqa: BLE001 - already gone
+                pass
+        self.setting, self.workers = None, []
+
+
 def resolve(config: RunConfig) -> tuple[EnvSpec, list[Task], int]:
     """(environment spec, task list, attempts per task) for a config, or ConfigError."""
     spec = get_spec(config.env)
@@ -197,11 +238,11 @@ def _probe(host: str, port: int, address: str, timeout_s: float) -> None:
 
 
 def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None = None, *,
-             stream=sys.stderr) -> RunOutcome:
+             stream=sys.stderr, env_pool: EnvWorkerPool | None = None) -> RunOutcome:
     """Run (or resume) an evaluation into `out`. Every check that needs no Ray comes first
     and raises ConfigError / RunDirError / the models' errors (unknown model, missing key)
     before Ray starts and without writing anything; a finished run returns at once, without
-    Ray."""
+    Ray. `env_pool`: take the environment workers from it (and leave them running)."""
     import ray
 
     runtime = runtime or RuntimeOptions()
@@ -240,7 +281,6 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
     model_actors: list[Any] = []
     try:
         say("starting workers")
-        n_workers = runtime.env_workers or _default_workers(runtime.env_resource)
         # Named "deepphy/<run id>/<role>": a dashboard or an operator can find a live run's
         # metrics actor (ray.util.list_named_actors) and poll its snapshot.
         prefix = f"deepphy/{uuid.uuid4().hex[:8]}"
@@ -251,11 +291,14 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
         if runtime.progress:  # where `deepphy watch` and `deepphy dashboard --address` find this run
             print(f"deepphy: run {status.run_id} on Ray at {status.ray_address}; follow it with "
                   f"`deepphy watch {out}`", file=stream, flush=True)
-        env_workers = [
-            make_env_worker(spec, config.env_options, name=f"{prefix}/env{i}", resource=runtime.env_resource,
-                            log_path=store.log_path(f"env{i}"), max_concurrency=max(1000, runtime.max_in_flight))
-            for i in range(n_workers)
-        ]
+        if env_pool is not None:
+            env_workers = env_pool.get(spec, config.env_options, runtime, make_env_worker)
+        else:
+            env_workers = [
+                make_env_worker(spec, config.env_options, name=f"{prefix}/env{i}", resource=runtime.env_resource,
+                                log_path=store.log_path(f"env{i}"), max_concurrency=max(1000, runtime.max_in_flight))
+                for i in range(runtime.env_workers or _default_workers(runtime.env_resource))
+            ]
         # The driver owns the endpoint's limiter, so a model worker's restart keeps its windows.
         limiter = ensure_limiter(endpoint) if endpoint is not None else None
         if endpoint is None:  # a random baseline answers in microseconds: no worker, no Ray call
@@ -269,7 +312,8 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             model, model_actors = WorkerModel(worker, shares_files), [worker]
         metrics = make_metrics_actor(total, k_max, spec.max_steps, name=f"{prefix}/metrics", run={
             "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})
-        actors = [*env_workers, *model_actors, metrics, *([limiter] if limiter is not None else [])]
+        actors = [*(env_workers if env_pool is None else []), *model_actors, metrics,
+                  *([limiter] if limiter is not None else [])]
         _started(metrics.add.remote([r.summary() for r in existing], resumed=True), "the metrics actor", runtime)
         if view:
             view.stop()
@@ -317,6 +361,16 @@ def _started(ref: Any, what: str, runtime: RuntimeOptions) -> Any:
     except ray.exceptions.GetTimeoutError:
         raise ClusterUnavailable(f"{what} did not start within {runtime.step_timeout_s:g} s (an overloaded "
                                  "machine, or no room on the cluster); run the same command again to resume") from None
+
+
+def episodes_done(config: RunConfig, out: str | Path) -> tuple[int, int]:
+    """(episodes complete, episodes) of the run `config` in directory `out` (none complete
+    while it holds no run). Needs no Ray; reads the log without taking the run's lock."""
+    _, tasks, k_max = resolve(config)
+    total = len(tasks) * config.runs
+    if not (Path(out) / CONFIG).is_file():
+        return 0, total
+    return _episodes_done(read_records(out), tasks, config.runs, k_max), total
 
 
 def _episodes_done(records, tasks: list[Task], runs: int, k_max: int) -> int:

@@ -48,11 +48,11 @@ def _png(seed: int) -> bytes:
 
 def synthetic_run(out: Path, env: str = "kinetix", *, runs: int = 2, seed: int = 0, fmt: str = "vla",
                   env_options: dict | None = None, tasks: list[str] | None = None, limit: int | None = None,
-                  max_steps: int = 4, p_success: float = 0.3, stars: bool = False) -> Path:
-    config = RunConfig(env=env, runs=runs, seed=seed, format=fmt, env_options=env_options or {},
+                  max_steps: int = 4, p_success: float = 0.3, stars: bool = False, model: str = "mock") -> Path:
+    config = RunConfig(env=env, model=model, runs=runs, seed=seed, format=fmt, env_options=env_options or {},
                        tasks=tasks, limit=limit)
     _, task_list, k_max = resolve(config)
-    rng = random.Random(f"{env}-{seed}-{json.dumps(env_options, sort_keys=True)}")
+    rng = random.Random(f"{env}-{seed}-{json.dumps(env_options, sort_keys=True)}" + ("" if model == "mock" else model))
     with RunStore.create_or_resume(out, config) as store:
         for run in range(runs):
             for task in task_list:

@@ -32,6 +32,7 @@ class ReportSpec(BaseModel):
     group_noun: str = "group"  # what a task group is called in figures ("size", "setup")
     auccess: bool = False  # PHYRE's AUCCESS (invalid attempts not counted)
     stars: bool = False  # the games' stars
+    leaderboard_groups: bool = False  # the leaderboard shows success per task group too (Kinetix S/M/L)
 
 
 class EnvSpec(BaseModel):

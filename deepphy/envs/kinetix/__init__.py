@@ -22,7 +22,7 @@ SPEC = EnvSpec(
     # The protocol budgets Kinetix in decisions per episode, not attempts.
     max_attempts=1,
     max_steps=MAX_DECISIONS,
-    report=ReportSpec(step_noun="decision", group_noun="size"),
+    report=ReportSpec(step_noun="decision", group_noun="size", leaderboard_groups=True),
     description="74 handcrafted levels (S, M, L): drive motors and thrusters so green touches blue",
 )
 

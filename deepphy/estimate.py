@@ -1,0 +1,283 @@
+"""What a run will ask of its model before it asks (`deepphy run --dry-run`): requests,
+images and input tokens per request measured on the actual rendered prompts, bounds for
+the whole run, its cost at the models file's prices, and its time at the endpoint's
+request rate limit. No model is called; nothing is written.
+
+The prompts are measured, not guessed: for each of the first `sample` tasks the
+environment is reset and stepped once (a MOCK action, in this process) and the real
+prompt builder renders the first request, a request after one failed attempt and a
+request after one earlier decision; the differences are what every further attempt or
+decision adds. The bounds assume every episode uses all K attempts and all decisions of
+each (a model that solves tasks asks less).
+
+Image tokens follow each provider's published rule (IMAGE_TOKEN_RULES, with its source
+and the date it was read); text tokens are estimated as characters / 4 (CHARS_PER_TOKEN),
+the usual rule of thumb for English with these tokenizers: the figure is an estimate,
+not a count.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from dataclasses import dataclass
+from typing import Callable
+
+from deepphy.agents import endpoint_config
+from deepphy.chat import Image, ImagePart, Message, TextPart
+from deepphy.config import RunConfig
+from deepphy.envs.base import Planning
+from deepphy.models.config import ModelConfig, Provider
+from deepphy.prompts import PastAttempt, PastStep, build_messages
+from deepphy.seeding import seeded_rng
+
+CHARS_PER_TOKEN = 4  # text tokens ~ characters / 4 (OpenAI's and Anthropic's rule of thumb)
+DEFAULT_SAMPLE = 3  # tasks per run whose prompts are rendered and measured
+
+
+def _openai_image_tokens(w: int, h: int) -> int:
+    """OpenAI, detail "high" (GPT-4o / GPT-4.1 family): fit in 2048x2048, then the short
+    side to at most 768; 170 tokens per 512-px tile plus 85."""
+    scale = min(1.0, 2048 / max(w, h))
+    w, h = w * scale, h * scale
+    scale = min(1.0, 768 / min(w, h))
+    w, h = w * scale, h * scale
+    return 85 + 170 * math.ceil(w / 512) * math.ceil(h / 512)
+
+
+def _anthropic_image_tokens(w: int, h: int) -> int:
+    """Anthropic: width x height / 750, after resizing the long edge to at most 1568 px."""
+    scale = min(1.0, 1568 / max(w, h))
+    return math.ceil(w * scale * h * scale / 750)
+
+
+def _gemini_image_tokens(w: int, h: int) -> int:
+    """Gemini 2.x: 258 tokens for an image of at most 384x384, else 258 per 768x768 tile."""
+    if w <= 384 and h <= 384:
+        return 258
+    return 258 * math.ceil(w / 768) * math.ceil(h / 768)
+
+
+# Read on 2026-11-23 from the providers' vision guides: platform.openai.com/docs/guides/images-vision
+# ("Calculating costs"), docs.anthropic.com/en/docs/build-with-claude/vision ("Calculate image
+# costs"), ai.google.dev/gemini-api/docs/tokens ("Multimodal tokens"). Self-hosted OpenAI-compatible
+# servers (vLLM, SGLang) count with their own processor: the OpenAI rule is then an estimate.
+IMAGE_TOKEN_RULES: dict[Provider, Callable[[int, int], int]] = {
+    Provider.OPENAI: _openai_image_tokens,
+    Provider.ANTHROPIC: _anthropic_image_tokens,
+    Provider.GEMINI: _gemini_image_tokens,
+}
+
+
+def png_size(image: Image) -> tuple[int, int]:
+    """(width, height) from the PNG header."""
+    data = image.load()[:24]
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError(f"image {image.name!r} is not a PNG")
+    return struct.unpack(">II", data[16:24])
+
+
+@dataclass(frozen=True)
+class PromptSize:
+    chars: int
+    images: list[tuple[int, int]]
+
+    def __sub__(self, other: "PromptSize") -> "PromptSize":
+        return PromptSize(self.chars - other.chars, self.images[len(other.images):])
+
+
+def prompt_size(messages: list[Message]) -> PromptSize:
+    chars = sum(len(p.text) for m in messages for p in m.content if isinstance(p, TextPart))
+    return PromptSize(chars, [png_size(p.image) for m in messages for p in m.content if isinstance(p, ImagePart)])
+
+
+@dataclass
+class CellEstimate:
+    """One run's bounds. Tokens and cost are None for a random baseline (no model)."""
+
+    label: str
+    episodes: int
+    attempts_max: int
+    requests_min: int  # one decision per episode
+    requests_max: int  # every attempt, every decision
+    images_first: float  # in the first request of an episode (mean over the sampled tasks)
+    images_max: int  # in the largest request, after the endpoint's max_images
+    max_images: int | None
+    tokens_first: float | None  # input tokens of the first request
+    tokens_max: float | None  # input tokens of the largest request
+    input_tokens_max: float | None  # over the whole run
+    output_tokens_max: int | None  # every request answering max_tokens
+    cost_input_max: float | None  # USD; None where the price is unknown
+    cost_output_max: float | None
+    price_known: bool
+    rate_limit_min: float | None  # minutes at the endpoint's requests/min for requests_max
+    sampled: int
+
+
+@dataclass(frozen=True)
+class TaskPrompts:
+    """One task's measured prompts: the first request, and what one failed attempt and
+    one earlier decision add to it."""
+
+    first: PromptSize
+    per_attempt: PromptSize
+    per_step: PromptSize
+
+
+_measured: dict[str, list[TaskPrompts]] = {}  # the prompts do not depend on the model: a suite measures once
+
+
+def measure(config: RunConfig, sample: int = DEFAULT_SAMPLE) -> list[TaskPrompts]:
+    """Render and measure the prompts of `config`'s first `sample` tasks (see the module)."""
+    from deepphy.runner import resolve
+
+    key = config.model_copy(update={"model": "", "runs": 1}).model_dump_json() + f"/{sample}"
+    if key in _measured:
+        return _measured[key]
+    spec, tasks, _ = resolve(config)
+    env_cls = spec.load()
+    env = env_cls(env_cls.Options(**config.env_options))
+    prompt = spec.load_prompt()
+    out = []
+    for task in tasks[:sample]:
+        observation = env.reset(task)
+        first = prompt_size(build_messages(prompt, config.format, task, observation, []))
+        space = observation.action_space
+        text = space.reference_reply(seeded_rng("estimate", config.seed, config.env, task.id), [])
+        try:
+            result = env.step(space.parse(text))
+            frames, feedback = list(result.key_frames), result.feedback
+        except ValueError:  # the baseline's refusal (PHYRE's one in ten): no frames to show
+            frames, feedback = [], "invalid"
+        if spec.planning is Planning.ON_THE_FLY:
+            frames = frames[-1:]  # as deepphy.protocol.past_attempt shows an earlier attempt
+        past = PastAttempt(attempt=1, actions=[text], outcome=f"failed. {feedback}", key_frames=frames)
+        after_attempt = prompt_size(build_messages(prompt, config.format, task, observation, [past]))
+        after_step = prompt_size(build_messages(prompt, config.format, task, observation, [], [
+            PastStep(step=1, action=text, feedback=feedback, frame=observation.images[0])]))
+        out.append(TaskPrompts(first, after_attempt - first, after_step - first))
+    _measured[key] = out
+    return out
+
+
+def estimate(config: RunConfig, models_file: str | None = None, sample: int = DEFAULT_SAMPLE,
+             label: str | None = None) -> CellEstimate:
+    """Measure the prompts of `config`'s first `sample` tasks and bound the whole run."""
+    from deepphy.runner import resolve
+
+    spec, tasks, k_max = resolve(config)
+    endpoint: ModelConfig | None = endpoint_config(config.model, models_file)
+    measured = measure(config, sample)
+    recent_cap = spec.load_prompt().recent_steps_shown
+    steps = spec.max_steps
+    firsts = [m.first for m in measured]
+    per_attempt = [m.per_attempt for m in measured]
+    per_step = [m.per_step for m in measured]
+
+    cap = endpoint.resolved_max_images if endpoint is not None else None
+    rule = IMAGE_TOKEN_RULES[endpoint.provider] if endpoint is not None else None
+
+    def tokens(size: PromptSize, n_images: int) -> float:
+        """Input tokens of a request of this size, `n_images` of its images sent."""
+        image_tokens = [rule(w, h) for w, h in size.images] or [0]
+        return size.chars / CHARS_PER_TOKEN + n_images * sum(image_tokens) / len(image_tokens)
+
+    # Every request of an episode that uses all K attempts and all decisions, per sampled task.
+    totals, largest, largest_images = [], [], 0
+    for first, attempt, step in zip(firsts, per_attempt, per_step):
+        total = 0.0
+        for a in range(k_max):
+            for s in range(steps):
+                shown = min(s, recent_cap)
+                size = PromptSize(first.chars + a * attempt.chars + shown * step.chars,
+                                  first.images + a * attempt.images + shown * step.images)
+                n = len(size.images) if cap is None else min(cap, len(size.images))
+                largest_images = max(largest_images, n)
+                if rule is not None:
+                    t = tokens(size, n)
+                    total += t
+                    largest.append(t)
+        totals.append(total)
+    n_sampled = len(firsts)
+    episodes = len(tasks) * config.runs
+    requests_max = episodes * k_max * steps
+    max_tokens = endpoint.max_tokens or config.max_tokens if endpoint is not None else None
+    known = endpoint is not None and (endpoint.price.input_per_mtok > 0 or endpoint.price.output_per_mtok > 0)
+    input_max = episodes * sum(totals) / n_sampled if rule is not None else None
+    return CellEstimate(
+        label=label or f"{config.env} {config.model} {config.format.value}",
+        episodes=episodes,
+        attempts_max=episodes * k_max,
+        requests_min=episodes,
+        requests_max=requests_max,
+        images_first=sum(len(f.images) for f in firsts) / n_sampled,
+        images_max=largest_images,
+        max_images=cap,
+        tokens_first=sum(tokens(f, len(f.images) if cap is None else min(cap, len(f.images))) for f in firsts)
+        / n_sampled if rule is not None else None,
+        tokens_max=max(largest) if largest else None,
+        input_tokens_max=input_max,
+        output_tokens_max=requests_max * max_tokens if max_tokens is not None else None,
+        cost_input_max=input_max * endpoint.price.input_per_mtok / 1e6 if known else None,
+        cost_output_max=requests_max * max_tokens * endpoint.price.output_per_mtok / 1e6 if known else None,
+        price_known=known,
+        rate_limit_min=(requests_max / endpoint.rate_limits.requests_per_min
+                        if endpoint is not None and endpoint.rate_limits.requests_per_min else None),
+        sampled=n_sampled,
+    )
+
+
+# -- rendering --------------------------------------------------------------------------
+
+
+def _n(x: float | None, digits: int = 0) -> str:
+    if x is None:
+        return "-"
+    return f"{x:,.{digits}f}"
+
+
+def _usd(x: float | None, known: bool, baseline: bool) -> str:
+    if baseline:
+        return "$0 (no model)"
+    return f"${x:,.2f}" if known and x is not None else "unknown price"
+
+
+def render(cells: list[CellEstimate]) -> str:
+    """A table: a row per run, then the total."""
+    header = ["run", "episodes", "attempts<=", "requests", "images/request", "in tokens/request",
+              "in tokens<=", "in cost<=", "out cost<=", "rate-limit time>="]
+    rows = []
+    for c in cells:
+        baseline = c.tokens_first is None
+        images = f"{c.images_first:g}..{c.images_max}" + (f" (cap {c.max_images})" if c.max_images is not None else "")
+        rows.append([
+            c.label, _n(c.episodes), _n(c.attempts_max), f"{_n(c.requests_min)}..{_n(c.requests_max)}", images,
+            "-" if baseline else f"{_n(c.tokens_first)}..{_n(c.tokens_max)}", _n(c.input_tokens_max),
+            _usd(c.cost_input_max, c.price_known, baseline), _usd(c.cost_output_max, c.price_known, baseline),
+            "-" if c.rate_limit_min is None else _minutes(c.rate_limit_min),
+        ])
+    if len(cells) > 1:
+        priced = [c for c in cells if c.tokens_first is not None]
+        unknown = any(not c.price_known for c in priced)
+        total_in = sum(c.cost_input_max or 0 for c in priced)
+        total_out = sum(c.cost_output_max or 0 for c in priced)
+        rows.append(["total", _n(sum(c.episodes for c in cells)), _n(sum(c.attempts_max for c in cells)),
+                     f"{_n(sum(c.requests_min for c in cells))}..{_n(sum(c.requests_max for c in cells))}", "", "",
+                     _n(sum(c.input_tokens_max or 0 for c in cells)),
+                     f"${total_in:,.2f}" + (" + unknown" if unknown else ""),
+                     f"${total_out:,.2f}" + (" + unknown" if unknown else ""), ""])
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
+    fmt = lambda cells: "  ".join(c.ljust(w) if i == 0 else c.rjust(w)  # noqa: E731
+                                  for i, (c, w) in enumerate(zip(cells, widths))).rstrip()
+    sampled = sorted({c.sampled for c in cells})
+    return "\n".join([
+        fmt(header), fmt(["-" * w for w in widths]), *map(fmt, rows), "",
+        f"dry run: no model was called. Prompts measured on the first {'/'.join(map(str, sampled))} task(s) of each "
+        "run; bounds assume every attempt and every decision is used; text tokens ~ characters/"
+        f"{CHARS_PER_TOKEN}, image tokens by the provider's rule; out cost<= if every reply used max_tokens; "
+        "rate-limit time>=: requests<= at the endpoint's requests/min.",
+    ])
+
+
+def _minutes(m: float) -> str:
+    return f"{m:,.0f} min" if m < 120 else f"{m / 60:,.1f} h"

@@ -1,0 +1,264 @@
+"""The master table across run directories (`deepphy leaderboard`): a row per model x
+prompt format, a column group per environment setting (the environment and its options,
+so Kinetix with and without annotation are two groups) holding that environment's headline
+figures, mean±std over runs, the best of each column marked.
+
+Every figure is read from the reports `deepphy report` prints (`report_of`); which figures
+are headlines follows the environment's `ReportSpec`: success within K attempts (within
+the game for the one-attempt environments), AUCCESS where the spec has it, success per
+task group where `leaderboard_groups` is set, stars where the spec has them. A run with
+unfinished episodes is shown as unfinished (episodes done/total), never averaged in.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+from deepphy.envs import get_spec, specs
+from deepphy.metrics.report import LATEX_PREAMBLE, _count, _pct, latex_escape, mixed_task_sets
+
+BEST = "*"  # after the best value of a column (text, Markdown, CSV); LaTeX sets it in bold
+
+
+class LeaderboardError(ValueError):
+    """Run directories that do not make one table. The message is for the user."""
+
+
+@dataclass(frozen=True)
+class Column:
+    header: str
+    key: str  # what the column is, for the key under the table
+    figure: Callable[[dict[str, Any]], tuple[float | None, float | None]]  # report -> (mean, std)
+    percent: bool = True  # else a count
+
+
+@dataclass
+class Cell:
+    mean: float | None = None
+    std: float | None = None
+    text: str = "-"  # "-": no run of this setting
+    best: bool = False
+    unfinished: str | None = None  # "done/total" episodes, when the run is not complete
+    run_dir: str | None = None
+
+
+@dataclass
+class Group:
+    """The columns of one environment setting."""
+
+    env: str
+    options: dict[str, Any]
+    title: str
+    columns: list[Column]
+    reports: list[dict[str, Any]] = field(default_factory=list)
+
+
+@dataclass
+class Leaderboard:
+    groups: list[Group]
+    rows: list[tuple[str, str]]  # (model, format)
+    cells: dict[tuple[int, int], list[Cell]]  # (row, group) -> a cell per column
+    notes: list[str]
+
+    def row_label(self, i: int) -> str:
+        model, fmt = self.rows[i]
+        return f"{model} {fmt.upper()}"
+
+    def row_cells(self, i: int) -> list[Cell]:
+        return [c for g in range(len(self.groups)) for c in self.cells.get((i, g), _missing(self.groups[g]))]
+
+    def keys(self) -> list[str]:
+        return list(dict.fromkeys(c.key for g in self.groups for c in g.columns))
+
+
+def _missing(group: Group) -> list[Cell]:
+    return [Cell() for _ in group.columns]
+
+
+def _overall(report: dict[str, Any], name: str, index: int | None = None):
+    m, s = report["overall"]["mean"].get(name), report["overall"]["std"].get(name)
+    return (m, s) if index is None or m is None else (m[index], s[index])
+
+
+def headline_columns(report: dict[str, Any]) -> list[Column]:
+    """An environment's headline figures, from its spec (the same for every report of it)."""
+    spec = get_spec(report["env"])
+    k = report["max_attempts"]
+    succ = (f"Succ@{k}", f"Succ@{k}: tasks solved within {k} attempts (%)") if k > 1 else \
+        ("Succ", "Succ: tasks solved in their one attempt (all its decisions, shots or actions) (%)")
+    columns = []
+    if spec.report.leaderboard_groups:
+        for g in report.get("groups", {}):
+            columns.append(Column(g, f"{g}: tasks of {spec.report.group_noun} {g} solved (%)",
+                                  lambda r, g=g: (r["groups"][g]["mean"]["success_at"][k - 1],
+                                                  r["groups"][g]["std"]["success_at"][k - 1])))
+    columns.append(Column(*succ, lambda r: _overall(r, "success_at", k - 1)))
+    if spec.report.auccess:
+        columns.append(Column("AUCCESS", "AUCCESS: PHYRE's area under the success curve (%)",
+                              lambda r: _overall(r, "auccess")))
+    if spec.report.stars:
+        def stars(r):
+            m, s = r["overall"]["mean"].get("stars"), r["overall"]["std"].get("stars")
+            return (None, None) if m is None else (m["total"], s["total"])
+
+        columns.append(Column("Stars", "Stars: stars earned per run", stars, percent=False))
+    return columns
+
+
+def _setting_title(env: str, options: dict[str, Any]) -> str:
+    title = get_spec(env).title
+    return title + "".join(f" {k}={v}" for k, v in sorted(options.items()))
+
+
+def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path] | None = None) -> Leaderboard:
+    """The table of these reports (`run_dirs[i]` made `reports[i]`). Two reports of one row
+    and one environment setting are an error: the table would have to pick one."""
+    run_dirs = [str(d) for d in run_dirs] if run_dirs is not None else [None] * len(reports)
+    groups: dict[tuple[str, str], Group] = {}
+    rows: dict[tuple[str, str], int] = {}
+    where: dict[tuple[int, int], str | None] = {}
+    cells: dict[tuple[int, int], list[Cell]] = {}
+    for report, run_dir in zip(reports, run_dirs):
+        gkey = (report["env"], json.dumps(report["env_options"], sort_keys=True))
+        if gkey not in groups:
+            groups[gkey] = Group(report["env"], report["env_options"],
+                                 _setting_title(report["env"], report["env_options"]), headline_columns(report))
+        group = groups[gkey]
+        g = list(groups).index(gkey)
+        r = rows.setdefault((report["model"], report["format"]), len(rows))
+        if (r, g) in cells:
+            raise LeaderboardError(f"two runs of {report['model']} {report['format'].upper()} on {group.title}: "
+                                   f"{where[(r, g)]} and {run_dir}; give one of them")
+        where[(r, g)] = run_dir
+        group.reports.append(report)
+        per_run = report["overall"]["per_run"]
+        done = sum(x["tasks"] - x["unfinished"] for x in per_run)
+        total = report["overall"]["tasks"] * report["runs"]
+        if done < total:
+            cells[(r, g)] = [Cell(text=f"unfinished {done}/{total}" if i == 0 else "", unfinished=f"{done}/{total}",
+                                  run_dir=run_dir) for i in range(len(group.columns))]
+            continue
+        cells[(r, g)] = []
+        for column in group.columns:
+            m, s = column.figure(report)
+            text = _pct(m, s) if column.percent else _count(m, s)
+            cells[(r, g)].append(Cell(m, s, text, run_dir=run_dir))
+    for g, group in enumerate(groups.values()):  # the best finished value of each column
+        for c in range(len(group.columns)):
+            values = [cells[(r, g)][c] for r in range(len(rows)) if (r, g) in cells]
+            scored = [x for x in values if x.unfinished is None and x.mean is not None]
+            if len({x.mean for x in scored}) > 1:  # all equal: nothing is best
+                top = max(x.mean for x in scored)
+                for x in scored:
+                    x.best = x.mean == top
+    notes = [f"{group.title}: {note}" for group in groups.values() if (note := mixed_task_sets(group.reports))]
+    # columns in the registry's order of environments, the default options first; rows as given
+    envs, keys = list(specs()), list(groups)
+    by_column = sorted(range(len(groups)), key=lambda g: (envs.index(keys[g][0]), keys[g][1] != "{}", keys[g][1]))
+    cells = {(r, by_column.index(g)): c for (r, g), c in cells.items()}
+    return Leaderboard([list(groups.values())[g] for g in by_column], sorted(rows, key=rows.get), cells, notes)
+
+
+# -- rendering --------------------------------------------------------------------------
+
+
+def _marked(cell: Cell) -> str:
+    return cell.text + (BEST if cell.best else "")
+
+
+def _flat_header(board: Leaderboard) -> list[str]:
+    return ["setting"] + [f"{g.title} {c.header}" for g in board.groups for c in g.columns]
+
+
+def _key_line(board: Leaderboard) -> str:
+    return " · ".join([*board.keys(), f"{BEST}: best of the column", "values: mean±std over runs",
+                       "unfinished d/t: episodes complete, not averaged in"])
+
+
+def render_text(board: Leaderboard) -> str:
+    top = [""] + [g.title if i == 0 else "" for g in board.groups for i in range(len(g.columns))]
+    header = ["setting"] + [c.header for g in board.groups for c in g.columns]
+    rows = [[board.row_label(i)] + [_marked(c) for c in board.row_cells(i)] for i in range(len(board.rows))]
+    # a group's title may be wider than its columns: widen its first column
+    widths = [max(len(header[j]), *(len(r[j]) for r in rows)) for j in range(len(header))]
+    j = 1
+    for g in board.groups:
+        span = sum(widths[j:j + len(g.columns)]) + 2 * (len(g.columns) - 1)
+        if len(g.title) > span:
+            widths[j + len(g.columns) - 1] += len(g.title) - span
+        j += len(g.columns)
+    fmt = lambda cells, just: "  ".join(  # noqa: E731
+        (c.ljust(w) if k == 0 or just == "l" else c.rjust(w)) for k, (c, w) in enumerate(zip(cells, widths))).rstrip()
+    lines = [fmt(top, "l"), fmt(header, "r"), fmt(["-" * w for w in widths], "r"), *(fmt(r, "r") for r in rows)]
+    lines += ["", _key_line(board), *(f"note: {n}" for n in board.notes)]
+    return "\n".join(lines)
+
+
+def render_markdown(board: Leaderboard) -> str:
+    header = _flat_header(board)
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join(["---"] + ["--:"] * (len(header) - 1)) + "|"]
+    for i in range(len(board.rows)):
+        cells = [f"**{c.text}**" if c.best else c.text for c in board.row_cells(i)]
+        lines.append("| " + " | ".join([board.row_label(i), *cells]) + " |")
+    return "\n".join([*lines, "", _key_line(board).replace(f"{BEST}: best", "bold: best"),
+                      *(f"note: {n}" for n in board.notes)])
+
+
+def render_csv(board: Leaderboard) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(_flat_header(board))
+    for i in range(len(board.rows)):
+        w.writerow([board.row_label(i), *(_marked(c) for c in board.row_cells(i))])
+    return buf.getvalue()
+
+
+def render_json(board: Leaderboard) -> str:
+    return json.dumps({
+        "columns": [{"env": g.env, "env_options": g.options, "title": g.title, "header": c.header, "key": c.key}
+                    for g in board.groups for c in g.columns],
+        "rows": [{"model": model, "format": fmt,
+                  "cells": [{"mean": c.mean, "std": c.std, "text": c.text, "best": c.best,
+                             "unfinished": c.unfinished, "run_dir": c.run_dir} for c in board.row_cells(i)]}
+                 for i, (model, fmt) in enumerate(board.rows)],
+        "notes": board.notes,
+    }, indent=2)
+
+
+def render_latex(board: Leaderboard) -> str:
+    """A `table*` float: a column group per environment setting, best values in bold.
+    Needs `\\usepackage{booktabs}` and `\\usepackage{graphicx}` (LATEX_PREAMBLE)."""
+    n = sum(len(g.columns) for g in board.groups)
+    top, rules, j = ["Setting"], [], 2
+    for g in board.groups:
+        top.append(r"\multicolumn{%d}{c}{%s}" % (len(g.columns), latex_escape(g.title)))
+        rules.append(r"\cmidrule(lr){%d-%d}" % (j, j + len(g.columns) - 1))
+        j += len(g.columns)
+    header = [""] + [latex_escape(c.header) for g in board.groups for c in g.columns]
+    body = []
+    for i in range(len(board.rows)):
+        cells = [(r"\textbf{%s}" if c.best else "%s") % latex_escape(c.text) for c in board.row_cells(i)]
+        body.append(" & ".join([latex_escape(board.row_label(i)), *cells]) + r" \\")
+    return "\n".join([
+        f"% deepphy leaderboard --latex; preamble: {LATEX_PREAMBLE}",
+        r"\begin{table*}[htbp]",
+        r"\centering",
+        r"\caption{" + latex_escape(_key_line(board).replace(f"{BEST}: best", "bold: best")) + "}",
+        r"\label{tab:deepphy-leaderboard}",
+        r"\resizebox{\ifdim\width>\linewidth\linewidth\else\width\fi}{!}{%",
+        r"\begin{tabular}{l" + "r" * n + "}",
+        r"\toprule",
+        " & ".join(top) + r" \\",
+        "".join(rules),
+        " & ".join(header) + r" \\",
+        r"\midrule",
+        *body,
+        r"\bottomrule",
+        r"\end{tabular}}",
+        r"\end{table*}",
+    ])

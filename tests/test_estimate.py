@@ -1,0 +1,81 @@
+"""`deepphy run --dry-run`: what a run will ask of its model, measured on the rendered
+prompts, without calling it or writing anything."""
+
+import json
+import re
+import socket
+
+import pytest
+
+from dashboard_support import IPHYRE_TASKS, mock_run
+from deepphy.cli import main
+from deepphy.config import RunConfig
+from deepphy.estimate import _anthropic_image_tokens, _gemini_image_tokens, _openai_image_tokens, estimate
+from deepphy.runs.store import read_records
+
+
+def test_image_token_rules_match_the_providers_worked_examples():
+    # OpenAI's guide: 1024x1024 high detail -> 765; 2048x4096 -> 1105
+    assert _openai_image_tokens(1024, 1024) == 765
+    assert _openai_image_tokens(2048, 4096) == 1105
+    # Anthropic's table: 1092x1092 -> ~1590 (w*h/750); larger images are scaled to 1568 px first
+    assert _anthropic_image_tokens(1092, 1092) == 1590
+    assert _anthropic_image_tokens(3136, 3136) == _anthropic_image_tokens(1568, 1568)
+    # Gemini: 258 up to 384x384, else 258 per 768x768 tile
+    assert _gemini_image_tokens(384, 384) == 258
+    assert _gemini_image_tokens(1000, 700) == 2 * 258
+
+
+def test_bounds_hold_for_a_real_run(ray_cluster, tmp_path_factory):
+    run = mock_run(tmp_path_factory)  # MOCK on six I-PHYRE games, 2 runs, seed 3
+    config = RunConfig(env="iphyre", model="mock", runs=2, seed=3, tasks=IPHYRE_TASKS)
+    est = estimate(config, sample=len(IPHYRE_TASKS))
+    records = read_records(run)
+    requests = sum(len(r.steps) for r in records)
+    assert est.episodes == 12 and est.attempts_max == 120
+    assert est.requests_min <= requests <= est.requests_max
+    images = {}  # prompt digest -> images in it
+    for prompt in (run / "prompts").iterdir():
+        text = prompt.read_text()
+        images[prompt.stem] = len(re.findall(r"<image [^:>]*: ", text))
+    first = [images[r.steps[0].prompt] for r in records if r.attempt == 1]
+    assert est.images_first == pytest.approx(sum(first) / len(first))
+    assert max(images.values()) <= est.images_max
+    assert est.tokens_first is None and est.cost_input_max is None  # a baseline: no model, no tokens
+
+
+def _closed_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]  # nothing listens once this closes
+
+
+def test_cli_prices_a_models_file_endpoint_that_is_not_listening(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("DRYRUN_TEST_KEY", raising=False)  # a dry run needs no key
+    models = tmp_path / "models.yaml"
+    port = _closed_port()
+    models.write_text(json.dumps({"models": [
+        {"name": "priced", "provider": "anthropic", "model": "x", "base_url": f"http://127.0.0.1:{port}/v1",
+         "api_key_env": "DRYRUN_TEST_KEY", "rate_limits": {"requests_per_min": 60},
+         "price": {"input_per_mtok": 3.0, "output_per_mtok": 15.0}},
+        {"name": "unpriced", "provider": "openai", "model": "y", "base_url": f"http://127.0.0.1:{port}/v1"},
+    ]}))
+    out = tmp_path / "run"
+    argv = ["run", "--env", "iphyre", "--tasks", "support,hinder", "--runs", "1", "--models-file", str(models),
+            "--out", str(out), "--dry-run"]
+    assert main([*argv, "--model", "priced"]) == 0
+    text = capsys.readouterr().out
+    row = next(line for line in text.splitlines() if line.startswith("iphyre priced vla"))
+    # 2 episodes x 10 attempts x 1 decision; 20 requests at 60/min
+    assert re.search(r"\b2\s+20\s+2\.\.20\b", row) and "20 min" not in row and row.rstrip().endswith("0 min")
+    est = estimate(RunConfig(env="iphyre", model="priced", runs=1, tasks=["support", "hinder"]), str(models))
+    assert f"${est.cost_input_max:,.2f}" in row and f"${est.cost_output_max:,.2f}" in row
+    assert est.cost_output_max == pytest.approx(20 * 1024 * 15 / 1e6)
+    assert est.cost_input_max == pytest.approx(est.input_tokens_max * 3 / 1e6)
+    assert est.tokens_first < est.tokens_max  # later attempts carry the failed attempts' key frames
+    assert "no model was called" in text
+    assert main([*argv, "--model", "unpriced"]) == 0
+    assert "unknown price" in capsys.readouterr().out
+    assert not out.exists()  # nothing written
+    assert main([*argv, "--model", "nonesuch"]) == 2
+    assert "nonesuch" in capsys.readouterr().err

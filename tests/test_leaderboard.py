@@ -1,0 +1,122 @@
+"""`deepphy leaderboard`: the master table across run directories of several models and
+environments. Every figure must be the one `deepphy report` gives for the same directory."""
+
+import json
+import shutil
+
+import pytest
+
+from dashboard_support import copy_run, synthetic_run
+from deepphy.cli import main
+from deepphy.metrics.leaderboard import leaderboard, render_csv, render_latex, render_markdown, render_text
+from deepphy.metrics.report import report_of
+
+KINETIX = ["s_h0_weak_thrust", "s_h1_thrust_over_ball", "m_arm_hard", "m_arm_left", "l_car_launch", "l_car_swing_around"]
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory):
+    """A suite-like root: <model>/<env setting>/<format>, two models, synthetic runs."""
+    root = tmp_path_factory.mktemp("board")
+    for model, p in [("mock", 0.2), ("gpt-4o", 0.6)]:
+        synthetic_run(root / model / "kinetix" / "vla", tasks=KINETIX, runs=3, model=model, p_success=p)
+        synthetic_run(root / model / "kinetix-plain" / "vla", tasks=KINETIX, runs=3, model=model, p_success=p,
+                      env_options={"annotate": False})
+        synthetic_run(root / model / "angrybirds" / "vla", env="angrybirds", limit=6, stars=True, model=model,
+                      p_success=p)
+        synthetic_run(root / model / "phyre" / "vla", env="phyre", limit=6, max_steps=1, model=model, p_success=p)
+    synthetic_run(root / "mock" / "phyre" / "wm", env="phyre", limit=6, max_steps=1, fmt="wm", p_success=0.3)
+    return root
+
+
+def _board(paths):
+    return leaderboard([report_of(p) for p in paths], [str(p) for p in paths])
+
+
+def _runs(root):
+    return sorted(p.parent for p in root.rglob("config.json"))
+
+
+def test_rows_are_settings_and_columns_the_environments_headlines(root):
+    board = _board(_runs(root))
+    assert [board.row_label(i) for i in range(len(board.rows))] == ["gpt-4o VLA", "mock VLA", "mock WM"]
+    assert [g.title for g in board.groups] == ["Angry Birds", "Kinetix", "Kinetix annotate=False", "PHYRE-B"]
+    assert [[c.header for c in g.columns] for g in board.groups] == [
+        ["Succ", "Stars"], ["S", "M", "L", "Succ"], ["S", "M", "L", "Succ"], ["Succ@10", "AUCCESS"]]
+    # each figure is the report's of that directory
+    for (r, g), cells in board.cells.items():
+        report = report_of(cells[0].run_dir)
+        mean = report["overall"]["mean"]
+        k = report["max_attempts"]
+        expected = {"Succ": mean["success_at"][0], f"Succ@{k}": mean["success_at"][k - 1],
+                    "AUCCESS": mean.get("auccess"), "Stars": (mean.get("stars") or {}).get("total"),
+                    **{size: sec["mean"]["success_at"][0] for size, sec in report.get("groups", {}).items()}}
+        for column, cell in zip(board.groups[g].columns, cells):
+            assert cell.mean == pytest.approx(expected[column.header]), (cells[0].run_dir, column.header)
+    # a setting without a run of an environment shows "-"
+    wm = board.rows.index(("mock", "wm"))
+    assert [c.text for c in board.row_cells(wm)][:2] == ["-", "-"]
+
+
+def test_the_best_of_each_column_is_marked(root):
+    board = _board(_runs(root))
+    for g, group in enumerate(board.groups):
+        for c in range(len(group.columns)):
+            cells = [board.cells[(r, g)][c] for r in range(len(board.rows)) if (r, g) in board.cells]
+            top = max(x.mean for x in cells)
+            differ = len({x.mean for x in cells}) > 1  # all equal: none marked
+            assert [x.best for x in cells] == [differ and x.mean == top for x in cells]
+    text = render_text(board)
+    assert "*" in text and "best of the column" in text
+    assert "**" in render_markdown(board) and r"\textbf{" in render_latex(board)
+
+
+def test_unfinished_runs_are_marked_and_never_averaged_or_best(root, tmp_path):
+    src = root / "gpt-4o" / "phyre" / "vla"
+    copy_run(src, tmp_path / "cut", lines=5)  # PHYRE: at most 10 attempts per episode, so some are open
+    paths = [root / "mock" / "phyre" / "vla", tmp_path / "cut"]
+    board = _board(paths)
+    cut = board.cells[(1, 0)]
+    done = sum(x["tasks"] - x["unfinished"] for x in report_of(tmp_path / "cut")["overall"]["per_run"])
+    assert cut[0].unfinished == f"{done}/12" and cut[0].text == f"unfinished {done}/12"
+    assert all(c.mean is None and not c.best for c in cut)
+    assert not any(c.best for c in board.cells[(0, 0)])  # one finished row: nothing to compare
+
+
+def test_two_runs_of_one_cell_are_refused(root, tmp_path):
+    synthetic_run(tmp_path / "again", env="phyre", limit=6, max_steps=1, seed=1)
+    with pytest.raises(ValueError, match="two runs of mock VLA on PHYRE-B"):
+        _board([root / "mock" / "phyre" / "vla", tmp_path / "again"])
+
+
+def test_cli_takes_a_root_and_plain_run_directories_of_different_environments(root, capsys):
+    assert main(["leaderboard", str(root), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert len(data["rows"]) == 3 and len(data["columns"]) == 12
+    # plain run directories of different environments: `report` refuses them, the leaderboard takes them
+    dirs = [str(root / "mock" / "phyre" / "vla"), str(root / "gpt-4o" / "angrybirds" / "vla")]
+    assert main(["report", *dirs]) == 2
+    assert "one environment" in capsys.readouterr().err
+    assert main(["leaderboard", *dirs, "--csv"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "setting,Angry Birds Succ,Angry Birds Stars,PHYRE-B Succ@10,PHYRE-B AUCCESS"
+    assert lines[1].startswith("mock VLA,-,-,") and lines[2].startswith("gpt-4o VLA,")
+    assert render_csv(_board(dirs)).splitlines()[0] == lines[0]
+
+
+def test_cli_errors_are_one_line(tmp_path, capsys):
+    assert main(["leaderboard", str(tmp_path / "missing")]) == 2
+    assert "is not a directory" in capsys.readouterr().err
+    (tmp_path / "empty").mkdir()
+    assert main(["leaderboard", str(tmp_path / "empty")]) == 2
+    assert "holds no run directory" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(shutil.which("pdflatex") is None,
+                    reason="needs pdflatex with booktabs (Debian: texlive-latex-base texlive-latex-recommended)")
+def test_latex_leaderboard_compiles_and_fits_the_page(root, tmp_path):
+    from test_plots import _pdflatex
+
+    log = _pdflatex(render_latex(_board(_runs(root))), tmp_path)
+    assert "Overfull \\hbox" not in log and "Missing character" not in log
+    assert (tmp_path / "table.pdf").read_bytes()[:5] == b"%PDF-"

@@ -1,0 +1,161 @@
+"""Suites (`deepphy run --suite`): a cell per environment setting x model x format, each an
+ordinary run directory under the suite root, run in one Ray runtime, resumed as a whole."""
+
+import json
+import os
+import signal
+import subprocess
+import time
+
+import pytest
+import yaml
+
+from deepphy.cli import main
+from deepphy.config import RuntimeOptions
+from deepphy.metrics.report import report_of
+from deepphy.runs.store import ATTEMPTS, read_config, read_records
+from deepphy.suite import MANIFEST, Suite, SuiteError, cells, load_suite, plan, read_manifest, run_suite
+
+SMALL = {
+    "name": "small",
+    "envs": [{"env": "iphyre", "tasks": ["support", "hinder"]}, {"env": "phyre", "limit": 2}],
+    "formats": ["vla", "wm"],
+    "runs": 1,
+    "seed": 4,
+}
+RUNTIME = RuntimeOptions(progress=False, env_workers=2)
+
+
+def views(path):
+    return sorted((r.deterministic_view() for r in read_records(path)), key=lambda v: (v["task"], v["run"], v["attempt"]))
+
+
+def test_the_paper_suite_is_the_reference_grid():
+    suite = load_suite("paper")
+    grid = cells(suite, ["mock", "gpt-4o"])
+    settings = ["phyre", "iphyre", "kinetix-annotate=true", "kinetix-annotate=false", "pooltool", "angrybirds",
+                "cuttherope"]
+    assert [c.dir for c in grid] == [f"{m}/{s}/{f}" for s in settings for m in ("mock", "gpt-4o") for f in ("vla", "wm")]
+    assert {(c.config.runs, c.config.seed, c.config.tasks, c.config.limit) for c in grid} == {(3, 0, None, None)}
+    assert [c.config.env_options for c in grid if c.config.env == "kinetix"][::4] == [{"annotate": True},
+                                                                                     {"annotate": False}]
+    assert [c.dir for c in cells(suite)][:2] == ["mock/phyre/vla", "mock/phyre/wm"]  # the suite's default models
+
+
+@pytest.fixture(scope="module")
+def suite_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("suite-file") / "small.yaml"
+    path.write_text(yaml.safe_dump(SMALL))
+    return path
+
+
+@pytest.fixture(scope="module")
+def done(ray_cluster, suite_file, tmp_path_factory):
+    """The small suite, run once without interruption in the session's Ray runtime."""
+    root = tmp_path_factory.mktemp("suite") / "root"
+    outcomes = run_suite(load_suite(str(suite_file)), root, RUNTIME)
+    assert [(o.done, o.total) for o in outcomes] == [(2, 2)] * 2 + [(2, 2)] * 2
+    return root
+
+
+def test_every_cell_is_a_run_directory_named_by_the_manifest(done):
+    listed = read_manifest(done)
+    assert [c.dir for c in listed] == ["mock/iphyre/vla", "mock/iphyre/wm", "mock/phyre/vla", "mock/phyre/wm"]
+    for cell in listed:
+        assert read_config(done / cell.dir) == cell.config
+        report = report_of(done / cell.dir)  # what works on a run works on a cell
+        assert report["overall"]["per_run"][0]["unfinished"] == 0
+
+
+def test_leaderboard_of_the_root_has_a_row_per_setting_and_a_group_per_environment(done, capsys):
+    assert main(["leaderboard", str(done), "--json"]) == 0
+    board = json.loads(capsys.readouterr().out)
+    assert [(r["model"], r["format"]) for r in board["rows"]] == [("mock", "vla"), ("mock", "wm")]
+    assert [c["title"] for c in board["columns"]] == ["I-PHYRE", "PHYRE-B", "PHYRE-B"]
+    phyre_vla = report_of(done / "mock/phyre/vla")["overall"]["mean"]
+    assert board["rows"][0]["cells"][1]["mean"] == phyre_vla["success_at"][9]
+
+
+def test_running_a_complete_suite_again_adds_nothing_and_starts_no_ray(done, monkeypatch):
+    import deepphy.runner
+
+    monkeypatch.setattr(deepphy.runner, "ensure_ray", lambda *a, **k: pytest.fail("Ray was started"))
+    outcomes = run_suite(Suite.model_validate(SMALL), done, RUNTIME)
+    assert [o.new_records for o in outcomes] == [0, 0, 0, 0]
+
+
+def test_a_changed_suite_is_refused_and_an_added_model_extends_it(done, tmp_path):
+    before = (done / MANIFEST).read_bytes()
+    with pytest.raises(SuiteError, match="holds a different suite .cell mock/iphyre/vla has another config"):
+        plan(Suite.model_validate({**SMALL, "runs": 2}), done, None, None)
+    with pytest.raises(SuiteError, match="2 of its cells .mock/phyre/vla, mock/phyre/wm. are not in this suite"):
+        plan(Suite.model_validate({**SMALL, "envs": SMALL["envs"][:1]}), done, None, None)
+    extended = plan(Suite.model_validate(SMALL), done, ["mock", "mock-uniform"], None)
+    assert len(extended) == 8
+    assert (done / MANIFEST).read_bytes() == before  # planning writes nothing
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt").write_text("mine")
+    with pytest.raises(SuiteError, match="not empty and holds no suite"):
+        plan(Suite.model_validate(SMALL), tmp_path / "other", None, None)
+
+
+def test_cli_errors_are_one_line_before_anything_is_written(suite_file, tmp_path, capsys):
+    out = tmp_path / "root"
+    for argv, said in [
+        (["--suite", str(suite_file), "--env", "phyre"], "--env is set by the suite"),
+        (["--suite", "nonesuch"], "no suite 'nonesuch'"),
+        (["--suite", str(suite_file), "--model", "mock,nonesuch"], "nonesuch"),
+        (["--model", "mock,mock-uniform"], "several models need --suite"),
+    ]:
+        assert main(["run", *argv, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert said in err and len(err.strip().splitlines()) == 1, err
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump({**SMALL, "envs": [{"env": "kinetix", "axes": {"annotate": []}}]}))
+    assert main(["run", "--suite", str(bad), "--out", str(out)]) == 2
+    assert "axis annotate has no values" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_dry_run_of_a_suite_prints_every_cell_and_the_total(suite_file, tmp_path, capsys):
+    assert main(["run", "--suite", str(suite_file), "--dry-run", "--out", str(tmp_path / "root")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    rows = [line.split()[0] for line in lines[2:7]]
+    assert rows == ["mock/iphyre/vla", "mock/iphyre/wm", "mock/phyre/vla", "mock/phyre/wm", "total"]
+    assert not (tmp_path / "root").exists()
+
+
+@pytest.mark.slow
+def test_a_killed_suite_resumes_to_the_records_of_an_uninterrupted_one(done, suite_file, ray_cluster, tmp_path,
+                                                                        deepphy_cmd):
+    root = tmp_path / "root"
+    proc = subprocess.Popen([*deepphy_cmd, "run", "--suite", str(suite_file), "--out", str(root), "--address",
+                             ray_cluster, "--no-progress", "--env-workers", "2"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    log = root / "mock" / "iphyre" / "wm" / ATTEMPTS  # the second cell: kill it there
+    deadline = time.time() + 300
+    while proc.poll() is None and time.time() < deadline and not (log.exists() and log.stat().st_size):
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=30)
+    assert log.exists() and not (root / "mock" / "phyre" / "wm").exists(), "the suite was not killed mid-way"
+    outcomes = run_suite(Suite.model_validate(SMALL), root, RUNTIME)
+    assert sum(o.new_records for o in outcomes) > 0
+    for cell in read_manifest(done):
+        assert views(root / cell.dir) == views(done / cell.dir), cell.dir
+
+
+def test_leaderboard_of_a_suite_shows_cells_not_started_as_unfinished(done, tmp_path, capsys):
+    root = tmp_path / "root"
+    root.mkdir()
+    (root / MANIFEST).write_bytes((done / MANIFEST).read_bytes())  # the suite, no cell run yet
+    assert main(["leaderboard", str(root), "--csv"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1:3] == ["mock VLA,unfinished 0/2,unfinished 0/2,", "mock WM,unfinished 0/2,unfinished 0/2,"]
+
+
+def test_plot_of_a_suite_root_draws_every_environment(done, tmp_path, capsys):
+    assert main(["plot", str(done), "--out", str(tmp_path / "fig")]) == 0
+    data = json.loads((tmp_path / "fig" / "figures.json").read_text())
+    assert {"cumulative_iphyre", "cumulative_phyre"} <= set(data)
+    assert data["cumulative_phyre"]["labels"] == ["mock VLA", "mock WM"]
