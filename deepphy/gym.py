@@ -41,7 +41,9 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from deepphy.envs import ActionSpace, Environment, InvalidAction, Observation, Task, get_spec, specs
+from deepphy.envs import (
+    ActionSpace, EnvOptions, Environment, InvalidAction, Observation, Task, get_spec, specs,
+)
 from deepphy.envs.parsing import MAX_REPLY_CHARS
 
 SUCCESS_REWARD = 1.0  # the step that solves the task
@@ -111,6 +113,7 @@ class DeepPhyEnv(gymnasium.Env):
         if not self.tasks:
             raise ValueError("the task selection is empty")
         self.invalid_reward = float(invalid_reward)
+        warm_up(env_cls, self.env.options, self.tasks)
 
         # The images' shape is the environment's: read it from a first observation.
         first = self.env.reset(self.tasks[0])
@@ -187,6 +190,18 @@ class DeepPhyEnv(gymnasium.Env):
 
     def _obs(self) -> dict[str, Any]:
         return {"images": self._images, "text": self._observation.text}
+
+
+_warmed: set[tuple[str, str, tuple[str, ...]]] = set()
+
+
+def warm_up(env_cls: type[Environment], options: EnvOptions, tasks: Sequence[Task]) -> None:
+    """The environment's one-time preparation in this process (as deepphy's workers do before
+    their first episode: Pooltool's numba cache, Kinetix's compiled sizes), once per task set."""
+    key = (env_cls.spec.name, options.model_dump_json(), tuple(t.id for t in tasks))
+    if key not in _warmed:
+        env_cls.warm_up(options, tasks)
+        _warmed.add(key)
 
 
 def _images(observation: Observation) -> np.ndarray:
