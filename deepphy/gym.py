@@ -23,12 +23,13 @@ second implementation). One Gymnasium episode is one attempt at one task, as in
   decision budget ran out). `info` carries the environment's outcome: success, stars,
   score, feedback (what happened, in words) and its details.
 - Task: `task=` fixes one; otherwise every reset draws one from the evaluation set (or
-  `tasks=[...]`) with the environment's seeded generator, so the same `reset(seed=...)`
+  `tasks=[...]`) with Gymnasium's generator (`np_random`), so the same `reset(seed=...)`
   gives the same tasks, and deepphy's environments are deterministic: the same task and
   actions give bit-identical observations and outcomes. `reset(options={"task": id})`
   picks one for that episode.
 - `render()` (render_mode "rgb_array") returns the current scene, and after the last step
-  the environment's final key frame (the scene after it).
+  the environment's final key frame (the scene after it; PHYRE and I-PHYRE: their strip
+  of four frames over the attempt).
 - `env_options={...}`: the environment's options, as `deepphy run --env-option`.
 """
 
