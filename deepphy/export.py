@@ -22,14 +22,16 @@ import pyarrow.parquet as pq
 from deepphy.envs import specs
 from deepphy.envs.base import Planning
 from deepphy.runs.records import AttemptRecord, KeyFrame
+from deepphy.prompts.base import CURRENT_OBSERVATION
 from deepphy.runs.store import (
-    FRAMES, PROMPTS, RunDirError, check_records, inside, is_stored_prompt, read_config, read_records,
+    FRAMES, OLD_IMAGE_PLACEHOLDER, PROMPTS, RunDirError, check_records, image_file, inside, is_stored_prompt,
+    read_config, read_records, stored_image,
 )
 
 DATA_FILE = "data/decisions.parquet"
 IMAGES = "images"
 MARKER = "<!-- deepphy export -->"  # identifies a directory an earlier export wrote
-_IMAGE = re.compile(r"^<image ([^:>]*): (.*)>$", re.S)  # prompt_as_json's image placeholder
+BY_DIGEST = f"{IMAGES}/sha256"  # prompt images, named by the sha256 of their bytes, as in the run directory
 
 PART = pa.struct([
     ("type", pa.string()),  # "text" or "image"
@@ -55,7 +57,12 @@ FIELDS: list[tuple[str, pa.DataType, str]] = [
     ("prompt_digest", pa.string(), "content hash of the prompt (prompts/<digest>.json in the run directory)"),
     ("prompt", pa.list_(MESSAGE), "the chat messages; image parts carry a relative path when the image is stored"),
     ("images", pa.list_(pa.string()), "relative paths of the prompt's stored images, in order"),
-    ("images_not_stored", pa.int32(), "images the model was shown that the run directory does not keep"),
+    ("observation_images", pa.list_(pa.string()),
+     "relative paths of the current observation's images (the decision's input scene), in order"),
+    ("history_images", pa.list_(pa.string()),
+     "relative paths of the history images in the prompt (earlier attempts and decisions), in order"),
+    ("images_not_stored", pa.int32(), "images the model was shown that the run directory does not keep "
+                                      "(runs made before deepphy stored every prompt image)"),
     ("raw_output", pa.string(), "the model's reply, verbatim"),
     ("prediction", pa.string(), "the WM prediction (null for VLA)"),
     ("action", pa.string(), "the parsed action as JSON (null if the reply did not parse)"),
@@ -111,6 +118,22 @@ class _Images:
                 self.copied[rel] = dest.as_posix()
         return self.copied[rel]
 
+    def add_stored(self, digest: str) -> str | None:
+        """The dataset path of the run directory's images/<digest>.png (copied once, also
+        across run directories: the same image is one file), or None if absent."""
+        key = f"sha256:{digest}"
+        if key not in self.copied:
+            src = image_file(self.run_dir, digest)
+            dest = f"{BY_DIGEST}/{digest}.png"
+            if src is None:
+                self.copied[key] = None
+            else:
+                if not (self.staging / dest).exists():
+                    (self.staging / dest).parent.mkdir(parents=True, exist_ok=True)
+                    shutil.copyfile(src, self.staging / dest)
+                self.copied[key] = dest
+        return self.copied[key]
+
 
 def _frames_of_step(record: AttemptRecord, step: int, last: bool) -> list[KeyFrame]:
     """Key frames are named r<run>_a<attempt>_s<step>_<name>.png; frames that carry no
@@ -124,7 +147,16 @@ def _frames_of_step(record: AttemptRecord, step: int, last: bool) -> list[KeyFra
     return mine
 
 
-def _prompt(run_dir: Path, task: str, digest: str, images: _Images, cache: dict) -> tuple[list, list[str], int]:
+@dataclass
+class _Prompt:
+    messages: list[dict[str, Any]]
+    images: list[str]  # stored images, in order
+    observation: list[str]  # those after the current observation's heading
+    history: list[str]  # those before it
+    missing: int
+
+
+def _prompt(run_dir: Path, task: str, digest: str, images: _Images, cache: dict) -> _Prompt:
     if digest not in cache:
         rel = f"{PROMPTS}/{digest}.json"
         path = inside(run_dir, rel)  # the digest is a validated record's
@@ -138,24 +170,32 @@ def _prompt(run_dir: Path, task: str, digest: str, images: _Images, cache: dict)
             raise RunDirError(f"{run_dir}: {rel} cannot be read ({type(e).__name__})") from None
         if not is_stored_prompt(messages):
             raise RunDirError(f"{run_dir}: {rel} is not a stored prompt (a list of messages)")
-        out, stored, missing = [], [], 0
+        found = _Prompt([], [], [], [], 0)
+        current = False  # past the current observation's heading
         for m in messages:
             parts = []
-            for text in m["content"]:
-                found = _IMAGE.match(text)
-                if found is None:
-                    parts.append({"type": "text", "text": text, "image": None, "name": None, "caption": None})
+            for part in m["content"]:
+                ref = stored_image(part)
+                old = OLD_IMAGE_PLACEHOLDER.match(part) if ref is None else None
+                if ref is None and old is None:
+                    parts.append({"type": "text", "text": part, "image": None, "name": None, "caption": None})
+                    current = current or part == CURRENT_OBSERVATION
                     continue
-                name, caption = found.groups()
-                path = (images.add(f"{FRAMES}/{task}/{name}", f"prompt {digest}")
-                        if "/" not in name and name not in ("", ".", "..") else None)
+                if ref is not None:
+                    image_digest, name, caption = ref
+                    path = images.add_stored(image_digest)
+                else:  # a run from before images/: only history key frames were kept, under frames/
+                    name, caption = old.groups()
+                    path = (images.add(f"{FRAMES}/{task}/{name}", f"prompt {digest}")
+                            if "/" not in name and name not in ("", ".", "..") else None)
                 parts.append({"type": "image", "text": None, "image": path, "name": name, "caption": caption})
                 if path:
-                    stored.append(path)
+                    found.images.append(path)
+                    (found.observation if current else found.history).append(path)
                 else:
-                    missing += 1
-            out.append({"role": m["role"], "content": parts})
-        cache[digest] = (out, stored, missing)
+                    found.missing += 1
+            found.messages.append({"role": m["role"], "content": parts})
+        cache[digest] = found
     return cache[digest]
 
 
@@ -172,13 +212,15 @@ def rows_of(run_dir: Path, source: str, staging: Path) -> tuple[list[dict[str, A
     for r in records:
         for i, s in enumerate(r.steps):
             last = i == len(r.steps) - 1
-            prompt, stored, missing = _prompt(run_dir, r.task, s.prompt, images, prompts)
+            prompt = _prompt(run_dir, r.task, s.prompt, images, prompts)
             frames = _frames_of_step(r, s.step, last)
             usage = r.model_stats.usage
             rows.append({
                 "source": source, "env": r.env, "task": r.task, "group": r.group, "run": r.run,
                 "attempt": r.attempt, "step": s.step, "model": r.model, "format": r.format, "seed": r.seed,
-                "prompt_digest": s.prompt, "prompt": prompt, "images": stored, "images_not_stored": missing,
+                "prompt_digest": s.prompt, "prompt": prompt.messages, "images": prompt.images,
+                "observation_images": prompt.observation, "history_images": prompt.history,
+                "images_not_stored": prompt.missing,
                 "raw_output": s.raw_output, "prediction": s.prediction,
                 "action": None if s.action is None else json.dumps(s.action, sort_keys=True),
                 "action_text": s.action_text, "valid": s.invalid_reason is None, "invalid_reason": s.invalid_reason,
@@ -220,12 +262,11 @@ def export(run_dirs: Sequence[str | Path], out: str | Path) -> ExportSummary:
     try:
         rows: list[dict[str, Any]] = []
         sources = []
-        n_images = 0
         for d, name, config in zip(dirs, _source_names(dirs), configs):
-            mine, images = rows_of(d, name, staging)
+            mine, _ = rows_of(d, name, staging)
             rows += mine
-            n_images += images
             sources.append((name, config, len(mine)))
+        n_images = sum(1 for _ in (staging / IMAGES).rglob("*.png"))  # an image shared by runs is one file
         (staging / DATA_FILE).parent.mkdir(parents=True, exist_ok=True)
         pq.write_table(pa.Table.from_pylist(rows, schema=SCHEMA), staging / DATA_FILE, compression="zstd")
         (staging / "README.md").write_text(dataset_card(sources, len(rows), n_images))
@@ -288,11 +329,14 @@ each of its decisions.
 
 ## Images
 
-`{IMAGES}/<source>/<task>/<file>.png`, referenced by relative path from `key_frames` and
-from the image parts of `prompt` (and listed in `images`). The run directory stores the
-key frames (what happened after a decision), which are also the history images of later
-prompts. The current observation shown with each prompt is not stored by deepphy: its
-prompt part has `image = null` (with its name and caption), counted in `images_not_stored`.
+Every image a model was shown is `{BY_DIGEST}/<sha256>.png` (the sha256 of its PNG bytes:
+one file however many prompts, attempts and runs showed it), referenced by relative path
+from the image parts of `prompt` and listed in `images`, `observation_images` (the scene
+the decision was made from) and `history_images`. Key frames (what happened after a
+decision) are `{IMAGES}/<source>/<task>/<file>.png`, referenced from `key_frames`. Runs
+made before deepphy stored every prompt image kept only the key frames: there the current
+observation's prompt part has `image = null` (with its name and caption), counted in
+`images_not_stored`.
 
 ## Loading
 

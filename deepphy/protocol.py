@@ -23,12 +23,14 @@ from __future__ import annotations
 import time
 from typing import Protocol, Sequence
 
-from deepphy.chat import Image
+from deepphy.chat import Image, Message
 from deepphy.config import RunConfig
 from deepphy.envs import Action, EnvSpec, Environment, InvalidAction, Observation, Planning, StepResult, Task
 from deepphy.envs.parsing import cut_reply
 from deepphy.models.base import ModelRequest, ModelResponse, RequestContext
-from deepphy.prompts import EnvPrompt, PastAttempt, PastStep, build_messages, prompt_as_json, prompt_digest, split_reply
+from deepphy.prompts import (
+    EnvPrompt, PastAttempt, PastStep, build_messages, image_digest, prompt_as_json, prompt_digest, split_reply,
+)
 from deepphy.runs.records import AttemptRecord, KeyFrame, ModelStats, StepRecord, Timing
 
 
@@ -47,7 +49,9 @@ class ModelHandle(Protocol):
 class Artifacts(Protocol):
     """Where an attempt's prompts and key frames go (the run store, or memory)."""
 
-    def write_prompt(self, digest: str, text: str) -> None: ...
+    def write_prompt(self, digest: str, messages: list[Message]) -> None:
+        """The prompt and every image in it, each stored once (content-addressed)."""
+        ...
 
     def write_frame(self, task: str, run: int, attempt: int, name: str, png: bytes) -> str: ...
 
@@ -87,7 +91,7 @@ async def run_attempt(
     for step in range(1, spec.max_steps + 1):
         messages = build_messages(prompt, config.format, task, observation, history, recent)
         digest = prompt_digest(messages)
-        artifacts.write_prompt(digest, prompt_as_json(messages))
+        artifacts.write_prompt(digest, messages)
         request = ModelRequest(
             messages=messages,
             temperature=config.temperature,
@@ -202,10 +206,15 @@ class MemoryArtifacts:
 
     def __init__(self) -> None:
         self.prompts: dict[str, str] = {}
+        self.images: dict[str, bytes] = {}  # by image_digest
         self.frames: dict[str, bytes] = {}
 
-    def write_prompt(self, digest: str, text: str) -> None:
-        self.prompts.setdefault(digest, text)
+    def write_prompt(self, digest: str, messages: list[Message]) -> None:
+        if digest not in self.prompts:
+            for image in (image for m in messages for image in m.images):
+                png = image.load()
+                self.images.setdefault(image_digest(png), png)
+            self.prompts[digest] = prompt_as_json(messages)
 
     def write_frame(self, task: str, run: int, attempt: int, name: str, png: bytes) -> str:
         rel = f"frames/{task}/r{run}_a{attempt}_{name}.png"

@@ -70,7 +70,8 @@ def synthetic_run(out: Path, env: str = "kinetix", *, runs: int = 2, seed: int =
                         ]
                         text = json.dumps(messages, indent=1)
                         digest = hashlib.sha256(text.encode()).hexdigest()[:20]
-                        store.write_prompt(digest, text)
+                        # The prompt as runs before content-addressed images stored it (placeholders).
+                        (Path(out) / "prompts" / f"{digest}.json").write_text(text)
                         value = rng.randint(0, 2)
                         if rng.random() < 0.08:
                             invalid = "unparseable action: not a list"

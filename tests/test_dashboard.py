@@ -21,7 +21,7 @@ from deepphy.dashboard.server import Dashboard, make_app
 from deepphy.dashboard.source import RunSource, writer_holds_lock
 from deepphy.metrics.report import report_of, table, table_key
 from deepphy.runs.status import RunStatus, read_status, write_status
-from deepphy.runs.store import ATTEMPTS, RunStore, read_config, read_records
+from deepphy.runs.store import ATTEMPTS, RunStore, read_config, read_prompt, read_records
 
 
 @pytest.fixture(scope="module")
@@ -122,20 +122,33 @@ def test_episode_shows_stored_images_and_marks_the_rest(run_dir):
     third = ep["attempts"][2]
     assert third["steps"][0]["raw_output"] == r.steps[0].raw_output
     parts = [p for m in ep["prompts"][r.steps[0].prompt] for p in m["content"] if p["type"] == "image"]
-    stored = [p["file"] for p in parts if p["file"]]
-    # attempt 3 was shown the key frames of attempts 1 and 2, which are files; the current
-    # observation's images are not stored
-    assert stored == [f.path for a in records if (a.task, a.run) == (r.task, r.run) and a.attempt < 3 for f in a.key_frames]
-    assert all(source.frame_path(p) for p in stored)
-    assert [p["name"] for p in parts if not p["file"]] == ["scene", "annotated"]
+    # Every image the model saw is a file: the key frames of attempts 1 and 2 (the same
+    # bytes as the key frames), then the current observation's scene and annotated scene.
+    assert all(p["file"] for p in parts)
+    history = [f.path for a in records if (a.task, a.run) == (r.task, r.run) and a.attempt < 3 for f in a.key_frames]
+    assert [source.frame_path(p["file"]).read_bytes() for p in parts[:-2]] == [(run_dir / f).read_bytes() for f in history]
+    assert [p["name"] for p in parts[-2:]] == ["scene", "annotated"]
+    prompt = read_prompt(run_dir, r.steps[0].prompt)
+    assert [source.frame_path(p["file"]).read_bytes() for p in parts] == [i.png for m in prompt for i in m.images]
     with pytest.raises(KeyError):
         source.episode("nosuch", 0)
+
+
+def test_a_run_from_before_stored_images_still_shows_what_it_kept(tmp_path):
+    run = synthetic_run(tmp_path / "old", "iphyre", limit=3, max_steps=1, p_success=0)  # prompts with "<image ...>" placeholders
+    source = loaded(run)
+    r = next(r for r in read_records(run) if r.attempt == 2)
+    parts = [p for m in source.episode(r.task, r.run)["prompts"][r.steps[0].prompt] for p in m["content"]
+             if p["type"] == "image"]
+    assert [p["name"] for p in parts if not p["file"]] == ["scene"] and any(p["file"] for p in parts)
 
 
 def test_only_frames_are_served(run_dir):
     source = loaded(run_dir)
     frame = read_records(run_dir)[0].key_frames[0].path
     assert source.frame_path(frame) == (run_dir / frame).resolve()
+    image = next((run_dir / "images").iterdir())
+    assert source.frame_path(f"images/{image.name}") == image.resolve()
     for bad in ("config.json", "attempts.jsonl", f"{frame}/../../../config.json", "frames/../config.json",
                 "../../etc/passwd", "/etc/passwd", "frames/nosuch.png"):
         assert source.frame_path(bad) is None, bad

@@ -6,6 +6,7 @@ page must load without console errors, show exactly the numbers of `deepphy repo
 Screenshots go to $DEEPPHY_SCREENSHOTS (default: the test's tmp directory).
 """
 
+import hashlib
 import json
 import os
 import re
@@ -190,14 +191,15 @@ def test_episode_view_shows_prompts_replies_and_frames(runs, serve, open_page, s
     page.eval_on_selector('#episode details.attempt[data-attempt="2"]', "d => { d.open = true; }")
     replies = page.eval_on_selector_all("#episode pre.reply", "ps => ps.map(p => p.textContent)")
     assert sorted(replies) == sorted(r.steps[0].raw_output for r in attempts)
-    # attempt 2's prompt shows attempt 1's key frame (a file) and marks the current
-    # observation as not stored
+    # attempt 2's prompt shows attempt 1's key frame and the current observation: every
+    # image the model saw, stored once by content (images/<sha256>.png)
     second = page.locator('#episode details.attempt[data-attempt="2"]')
-    frame = attempts[0].key_frames[0].path
-    img = second.locator(f'.prompt img[src$="{frame}"]')
+    frame = hashlib.sha256((runs[0] / attempts[0].key_frames[0].path).read_bytes()).hexdigest()
+    img = second.locator(f'.prompt img[src$="images/{frame}.png"]')
     img.wait_for()
     page.wait_for_function("img => img.complete && img.naturalWidth > 0", arg=img.element_handle())
-    assert second.locator(".missing").count() == 2  # scene and annotated
+    assert second.locator(".missing").count() == 0
+    assert second.locator(".prompt img").count() == 3  # the key frame, the scene and the annotated scene
     assert "#run=" in page.url and "task=" in page.url
     page.screenshot(path=str(screenshots / "dashboard_episode.png"))
     page.keyboard.press("Escape")

@@ -10,7 +10,7 @@ import pytest
 from dashboard_support import mock_run, synthetic_run
 from deepphy.cli import main
 from deepphy.export import DATA_FILE, FIELDS, export
-from deepphy.runs.store import read_records
+from deepphy.runs.store import read_prompt, read_records
 
 
 @pytest.fixture(scope="module")
@@ -83,11 +83,18 @@ def test_images_are_copied_and_referenced_by_relative_path(runs, exported):
             assert [p.rsplit("/", 1)[-1] for p in paths] == [f.path.rsplit("/", 1)[-1] for f in r.key_frames]
             for p, f in zip(paths, r.key_frames):
                 assert (out / p).read_bytes() == (run_dirs[row.source] / f.path).read_bytes()
-        # prompt images: the history frames are files, the current observation is not stored
         parts = [p for m in row.prompt for p in m["content"]]
         images = [p for p in parts if p["type"] == "image"]
         assert [p["image"] for p in images if p["image"]] == list(row.images)
-        assert sum(1 for p in images if p["image"] is None) == row.images_not_stored >= 1
+        assert list(row.images) == list(row.history_images) + list(row.observation_images)
+        if row.source == runs[1].name:
+            # a run from before images/ (the synthetic one): the current observation was not kept
+            assert sum(1 for p in images if p["image"] is None) == row.images_not_stored >= 1
+            continue
+        # every image the model saw is a file, and it is the very image the prompt held
+        assert row.images_not_stored == 0 and len(row.observation_images) == 2  # scene, annotated
+        shown = [i.png for m in read_prompt(run_dirs[row.source], row.prompt_digest) for i in m.images]
+        assert [(out / p).read_bytes() for p in row.images] == shown
     assert summary.images == len(referenced)
     assert any(row.images for row in rows), "later attempts show earlier key frames"
 

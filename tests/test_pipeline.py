@@ -190,7 +190,7 @@ def test_on_the_fly_episodes_through_ray(ray_cluster, tmp_path, env, tasks):
         assert r.success or r.truncated or r.steps[-1].terminated
         assert all(not (s.terminated or s.truncated) for s in r.steps[:-1])
     second = json.loads((tmp_path / "prompts" / f"{multi[0].steps[1].prompt}.json").read_text())
-    user = "\n".join(p for m in second for p in m["content"])
+    user = "\n".join(p for m in second for p in m["content"] if isinstance(p, str))  # texts; images are references
     assert "Your earlier decisions in this attempt" in user and f"Step 1: {multi[0].steps[0].action_text}" in user
     # Kinetix overrides step_many (one jitted call for many episodes): waiting episodes are
     # stepped together. Pooltool does not, so its worker steps one request per loop turn.

@@ -10,7 +10,6 @@ from __future__ import annotations
 import bisect
 import hashlib
 import json
-import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,7 +21,10 @@ from deepphy.metrics import figures as F
 from deepphy.metrics.report import build_report, setting, table, table_key
 from deepphy.runs.records import AttemptRecord
 from deepphy.runs.status import read_status, writer_holds_lock
-from deepphy.runs.store import ATTEMPTS, CONFIG, FRAMES, PROMPTS, inside, is_stored_prompt, read_config
+from deepphy.runs.store import (
+    ATTEMPTS, CONFIG, FRAMES, IMAGES, OLD_IMAGE_PLACEHOLDER, PROMPTS, image_file, inside, is_stored_prompt,
+    read_config, stored_image,
+)
 
 # Bytes of the log consumed per poll: a huge log loads in slices, so the page shows
 # progress and other requests get a turn between them.
@@ -32,7 +34,6 @@ MAX_LINE = 16 * 1024 * 1024  # a record is at most ~1 MB (replies are cut at 32,
 RATE_WINDOW_S = 60.0  # attempts/s and ETA of a live run: over the records of the last minute
 GRID_PAGE = 200  # tasks per grid page
 RUN_SEARCH_DEPTH = 3  # how many folders below a directory given to the dashboard its runs are looked for
-_IMAGE = re.compile(r"^<image ([^:>]*): (.*)>$", re.S)  # prompt_as_json's image placeholder
 
 
 def run_id(path: Path) -> str:
@@ -304,9 +305,8 @@ class RunSource:
         }
 
     def _prompt(self, task: str, digest: str) -> list[dict[str, Any]] | None:
-        """The prompt's messages; each image placeholder resolved to its stored file when it
-        is one (history key frames are stored under frames/<task>/ by their file name; the
-        current observation's images are not stored)."""
+        """The prompt's messages, each image resolved to its stored file: images/<sha256>.png
+        (runs before images/ kept only history key frames, under frames/<task>/ by name)."""
         path = inside(self.path, f"{PROMPTS}/{digest}.json")  # the digest is a validated record's
         try:
             messages = json.loads(path.read_text()) if path is not None else None
@@ -318,7 +318,14 @@ class RunSource:
         for m in messages:
             parts = []
             for text in m["content"]:
-                image = _IMAGE.match(text) if isinstance(text, str) else None
+                ref = stored_image(text)
+                if ref is not None:
+                    digest, name, caption = ref
+                    stored = image_file(self.path, digest) is not None
+                    parts.append({"type": "image", "name": name, "caption": caption,
+                                  "file": f"{IMAGES}/{digest}.png" if stored else None})
+                    continue
+                image = OLD_IMAGE_PLACEHOLDER.match(text)
                 if image is None:
                     parts.append({"type": "text", "text": text})
                     continue
@@ -331,10 +338,11 @@ class RunSource:
         return out
 
     def frame_path(self, rel: str) -> Path | None:
-        """A stored image under frames/ of this run directory (resolved inside it: symlinks
-        out of the directory are not followed), or None."""
+        """A stored image under frames/ or images/ of this run directory (resolved inside it:
+        symlinks out of the directory are not followed), or None."""
         target = inside(self.path, rel)
-        if target is None or target.suffix != ".png" or not target.is_relative_to(self.path / FRAMES):
+        if target is None or target.suffix != ".png" or not (
+                target.is_relative_to(self.path / FRAMES) or target.is_relative_to(self.path / IMAGES)):
             return None
         return target if target.is_file() else None
 

@@ -11,6 +11,7 @@ from deepphy.prompts.base import (
     PastStep,
     Reply,
     build_messages,
+    image_digest,
     mock_reply,
     prompt_as_json,
     prompt_digest,
@@ -19,5 +20,5 @@ from deepphy.prompts.base import (
 
 __all__ = [
     "OUTCOMES", "Reply", "EnvPrompt", "ImagePart", "Message", "PastAttempt", "PastStep", "PromptFormat", "TextPart",
-    "build_messages", "mock_reply", "prompt_as_json", "prompt_digest", "split_reply",
+    "build_messages", "image_digest", "mock_reply", "prompt_as_json", "prompt_digest", "split_reply",
 ]

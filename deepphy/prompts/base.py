@@ -180,15 +180,23 @@ def prompt_digest(messages: list[Message]) -> str:
     return h.hexdigest()[:20]
 
 
+def image_digest(png: bytes) -> str:
+    """The content address of an image: sha256 of its PNG bytes (images/<digest>.png)."""
+    return hashlib.sha256(png).hexdigest()
+
+
 def prompt_as_json(messages: list[Message]) -> str:
-    """The prompt text with image placeholders, for the run directory."""
+    """The prompt for the run directory: texts as strings, each image as {"image": its
+    digest, "name", "caption"}; the image itself is stored once, at images/<digest>.png.
+    (Runs before content-addressed images held a "<image NAME: CAPTION>" string instead.)"""
     out = []
     for m in messages:
         out.append(
             {
                 "role": m.role,
                 "content": [
-                    p.text if isinstance(p, TextPart) else f"<image {p.image.name}: {p.image.caption}>"
+                    p.text if isinstance(p, TextPart)
+                    else {"image": image_digest(p.image.load()), "name": p.image.name, "caption": p.image.caption}
                     for p in m.content
                 ],
             }

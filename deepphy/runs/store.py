@@ -3,7 +3,9 @@
 Layout:
     config.json      the RunConfig, written once; a resume must present the same one
     attempts.jsonl   one AttemptRecord per line, appended by the single driver
-    prompts/<digest>.json   each distinct prompt text once (images as placeholders)
+    prompts/<digest>.json   each distinct prompt once, its images by content address
+    images/<sha256>.png     every image of every prompt, once (named by the sha256 of its bytes;
+                     a history key frame is a hard link to its file under frames/)
     frames/<task>/r<run>_a<attempt>_<name>.png   key frames, referenced by records
     errors.jsonl     attempts that failed with an unexpected error (type, message, traceback);
                      they have no record, so a resume runs them again
@@ -30,6 +32,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import re
 import shutil
 import time
 from collections import Counter, defaultdict
@@ -39,8 +42,9 @@ from typing import Sequence
 
 from pydantic import ValidationError
 
-from deepphy.chat import Image
+from deepphy.chat import Image, ImagePart, Message, TextPart
 from deepphy.config import RunConfig
+from deepphy.prompts import image_digest, prompt_as_json
 from deepphy.runs.records import AttemptRecord, episode_finished
 
 PROMPTS_REMEMBERED = 10_000  # digests known to be on disk without asking the file system
@@ -50,8 +54,11 @@ ERRORS = "errors.jsonl"
 LOGS = "logs"
 FRAMES = "frames"
 PROMPTS = "prompts"
+IMAGES = "images"
 LOCK = ".lock"
-OWN_ENTRIES = {CONFIG, ATTEMPTS, ERRORS, LOGS, FRAMES, PROMPTS, LOCK}  # what a run directory holds
+OWN_ENTRIES = {CONFIG, ATTEMPTS, ERRORS, LOGS, FRAMES, PROMPTS, IMAGES, LOCK}  # what a run directory holds
+IMAGE_DIGEST = re.compile(r"^[0-9a-f]{64}$")  # images/<digest>.png (deepphy.prompts.image_digest)
+OLD_IMAGE_PLACEHOLDER = re.compile(r"^<image ([^:>]*): (.*)>$", re.S)  # an image in prompts of runs before images/
 
 
 class RunDirError(RuntimeError):
@@ -85,6 +92,7 @@ class RunStore:
         self._fd: int | None = None
         self._lock_fd: int | None = None
         self._prompts: set[str] = set()
+        self._images: set[str] = set()  # image digests known to be on disk
         self._task_dirs: set[str] = set()  # frames/<task> directories known to be inside the run
         self.created = False  # this store made the directory (discard() may remove it)
         self.appended = 0  # records and errors written
@@ -129,12 +137,15 @@ class RunStore:
         store.created = not store.path.exists()
         try:
             store.path.mkdir(parents=True, exist_ok=True)
-            for sub in (FRAMES, PROMPTS, LOGS):
+            for sub in (FRAMES, PROMPTS, IMAGES, LOGS):
                 (store.path / sub).mkdir(exist_ok=True)
         except OSError as e:
             store.discard()
             raise RunDirError(f"cannot create run directory {store.path}: {e.strerror or e}") from None
         store._root = store.path.resolve()
+        if inside(store._root, IMAGES) != store._root / IMAGES:
+            store.discard()
+            raise RunDirError(f"{store.path}/{IMAGES} leads out of the run directory; refusing to write there")
         try:
             store._lock()
             if not (store.path / CONFIG).exists():
@@ -268,18 +279,44 @@ class RunStore:
             raise _write_failed(self.path, rel, e) from None
         return rel
 
-    def write_prompt(self, digest: str, text: str) -> None:
+    def write_prompt(self, digest: str, messages: list[Message]) -> None:
+        """The prompt and each of its images, once (images first: a stored prompt's images
+        are on disk)."""
         if digest in self._prompts:
             return
         target = self.path / PROMPTS / f"{digest}.json"
         try:
             if not target.exists():
-                _atomic_write(target, text.encode())
+                for m in messages:
+                    for part in m.content:
+                        if isinstance(part, ImagePart):
+                            self._write_image(part.image)
+                _atomic_write(target, prompt_as_json(messages).encode())
         except OSError as e:
             raise _write_failed(self.path, f"{PROMPTS}/{digest}.json", e) from None
         if len(self._prompts) >= PROMPTS_REMEMBERED:  # bounded: a long run's memory stays flat
             self._prompts.clear()
         self._prompts.add(digest)
+
+    def _write_image(self, image: Image) -> None:
+        png = image.load()
+        digest = image_digest(png)
+        if digest in self._images:
+            return
+        target = self.path / IMAGES / f"{digest}.png"
+        if not target.exists():
+            tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+            try:  # a key frame already in the run directory: a second name, not a second copy
+                if image.file is None:
+                    raise OSError("no file to link")
+                os.link(image.file, tmp)
+                os.replace(tmp, target)
+            except OSError:
+                tmp.unlink(missing_ok=True)
+                _atomic_write(target, png)
+        if len(self._images) >= PROMPTS_REMEMBERED:
+            self._images.clear()
+        self._images.add(digest)
 
     def frame_image(self, rel: str, caption: str) -> Image:
         # By file: a waiting prompt holds the path, not the bytes (read where it is encoded).
@@ -454,10 +491,67 @@ def repair(path: str | Path, k_max: int) -> Repair:
 
 def is_stored_prompt(messages: object) -> bool:
     """The shape of prompts/<digest>.json (deepphy.prompts.prompt_as_json): a list of
-    {"role": str, "content": [str, ...]}. Readers check it: the file may have been edited."""
+    {"role": str, "content": [part, ...]}, a part a text or an image reference (see
+    `stored_image`; older runs hold "<image NAME: CAPTION>" strings). Readers check it: the
+    file may have been edited."""
     return isinstance(messages, list) and all(
         isinstance(m, dict) and isinstance(m.get("role"), str) and isinstance(m.get("content"), list)
-        and all(isinstance(t, str) for t in m["content"]) for m in messages)
+        and all(isinstance(t, str) or stored_image(t) is not None for t in m["content"]) for m in messages)
+
+
+def stored_image(part: object) -> tuple[str, str, str] | None:
+    """(digest, name, caption) of a stored prompt's image reference, or None if `part` is not one."""
+    if not isinstance(part, dict) or set(part) != {"image", "name", "caption"}:
+        return None
+    digest, name, caption = part["image"], part["name"], part["caption"]
+    if not (isinstance(digest, str) and IMAGE_DIGEST.match(digest) and isinstance(name, str) and isinstance(caption, str)):
+        return None
+    return digest, name, caption
+
+
+def image_file(path: str | Path, digest: str) -> Path | None:
+    """images/<digest>.png of a run directory if it is a file inside it, else None."""
+    root = Path(path).resolve()
+    target = inside(root, f"{IMAGES}/{digest}.png") if IMAGE_DIGEST.match(digest) else None
+    return target if target is not None and target.parent == root / IMAGES and target.is_file() else None
+
+
+def read_prompt(path: str | Path, digest: str) -> list[Message]:
+    """The exact messages of a stored prompt, images included (read from images/ and checked
+    against their digests): the request a model received, rebuilt from the run directory.
+    RunDirError if the prompt is missing, malformed, or from a run that did not store its
+    images."""
+    root = Path(path).resolve()
+    rel = f"{PROMPTS}/{digest}.json"
+    target = inside(root, rel) if re.fullmatch(r"[0-9a-f]{8,64}", digest) else None
+    if target is None:
+        raise RunDirError(f"{path}: {rel} is not a prompt of this run directory")
+    try:
+        stored = json.loads(target.read_text())
+    except FileNotFoundError:
+        raise RunDirError(f"{path}: prompt {digest} is missing ({rel})") from None
+    except (OSError, ValueError, RecursionError) as e:
+        raise RunDirError(f"{path}: {rel} cannot be read ({type(e).__name__})") from None
+    if not is_stored_prompt(stored) or any(m["role"] not in ("system", "user", "assistant") for m in stored):
+        raise RunDirError(f"{path}: {rel} is not a stored prompt (a list of messages)")
+    messages = []
+    for m in stored:
+        content: list[TextPart | ImagePart] = []
+        for part in m["content"]:
+            ref = stored_image(part)
+            if ref is None:
+                if OLD_IMAGE_PLACEHOLDER.match(part):
+                    raise RunDirError(f"{path}: {rel} names an image it did not store (a run from before images/)")
+                content.append(TextPart(text=part))
+                continue
+            image_digest_, name, caption = ref
+            file = image_file(root, image_digest_)
+            png = file.read_bytes() if file is not None else b""
+            if not png or image_digest(png) != image_digest_:
+                raise RunDirError(f"{path}: image {image_digest_[:12]}... of {rel} is missing or altered")
+            content.append(ImagePart(image=Image(name=name, caption=caption, png=png)))
+        messages.append(Message(role=m["role"], content=content))
+    return messages
 
 
 def _atomic_write(target: Path, data: bytes) -> None:

@@ -398,7 +398,7 @@ async function openEpisode(runId, task, r, refresh = false) {
     el("p", {}, state === "solved" ? el("span", { class: "ok", text: `solved at attempt ${solvedAt}` })
       : state === "failed" ? el("span", { class: "bad", text: `failed after ${attempts} attempt(s)` })
       : el("span", { text: `${attempts} attempt(s) so far, not finished` }), ` · K = ${ep.k_max}, at most ${ep.max_steps} decision(s) per attempt`),
-    el("p", { class: "muted small", text: "Images: key frames and the history frames in the prompts are files of the run directory and are shown; the current observation a model was shown is not stored, and is marked so." }),
+    el("p", { class: "muted small", text: "Images: every image of every prompt (the current observation and the history) and the key frames are files of the run directory and are shown; runs made before deepphy stored prompt images kept only key frames, and an image they did not keep is marked so." }),
   ];
   ep.attempts.forEach((a, i) => body.push(attemptNode(ep, a, refresh ? open.has(String(a.attempt)) : i === ep.attempts.length - 1)));
   document.getElementById("episode-body").replaceChildren(...body);

@@ -1,0 +1,171 @@
+"""Every image of every prompt is stored once, content-addressed, in the run directory
+(images/<sha256>.png): the exact request a model received can be rebuilt from the run
+directory alone, runs from before still read, and the export names each decision's
+input images."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import shutil
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+import yaml
+
+from deepphy.config import RunConfig, RuntimeOptions
+from deepphy.export import DATA_FILE, export
+from deepphy.models.providers import OpenAIChatClient
+from deepphy.models.wire import CONTEXT_HEADER, decode_context
+from deepphy.prompts.base import CURRENT_OBSERVATION
+from deepphy.runner import evaluate
+from deepphy.runs.store import RunDirError, image_file, read_prompt, read_records
+from deepphy.testing.model_server import ServerConfig, ServerThread
+
+RUNTIME = RuntimeOptions(progress=False, env_workers=1)
+
+
+@pytest.mark.parametrize("env, tasks, attempts", [
+    ("iphyre", ["support", "hinder"], 3),  # history: earlier attempts' key frames
+    ("cuttherope", ["b1_l03", "b2_l05"], None),  # history: earlier decisions' scenes
+])
+def test_a_request_rebuilt_from_the_run_directory_equals_what_the_server_received(
+        ray_cluster, tmp_path, env, tasks, attempts):
+    with ServerThread(ServerConfig(seed=1, record_bodies=1000)) as server:
+        models = tmp_path / "models.yaml"
+        models.write_text(yaml.safe_dump({"models": [{
+            "name": "local", "provider": "openai", "model": "deepphy-mock", "base_url": server.url + "/v1",
+            "send_context": True, "timeouts": {"request_s": 10.0, "connect_s": 2.0},
+        }]}))
+        run = tmp_path / "run"
+        config = RunConfig(env=env, model="local", runs=1, seed=2, tasks=tasks, max_attempts=attempts)
+        outcome = evaluate(config, run, RuntimeOptions(progress=False, env_workers=1, models_file=str(models)))
+        assert outcome.complete
+        received = [b for b in server.bodies() if b["path"] == "/v1/chat/completions"]
+    records = {r.key: r for r in read_records(run)}
+    assert all(r.model_stats.images_dropped == 0 and r.model_stats.retries == 0 for r in records.values())
+    assert len(received) == sum(len(r.steps) for r in records.values())
+    histories = 0
+    for body in received:
+        headers = {k.lower(): v for k, v in body["headers"].items()}
+        ctx = decode_context(headers[CONTEXT_HEADER.lower()])
+        step = records[(ctx.task_id, ctx.run, ctx.attempt)].steps[ctx.step - 1]
+        messages = read_prompt(run, step.prompt)
+        assert [OpenAIChatClient.message(m) for m in messages] == body["body"]["messages"]
+        assert "data:image/png;base64," in json.dumps(body["body"])  # the images themselves are compared
+        parts = [p for m in messages for p in m.content]
+        current = next(i for i, p in enumerate(parts) if getattr(p, "text", None) == CURRENT_OBSERVATION)
+        histories += any(hasattr(p, "image") for p in parts[:current])
+    assert histories, "some request showed history images"
+    # Stored once: one file per distinct image; a history key frame is a second name of its frame file.
+    images = sorted((run / "images").iterdir())
+    assert all(hashlib.sha256(p.read_bytes()).hexdigest() == p.stem for p in images)
+    frames = {f.stat().st_ino for f in (run / "frames").rglob("*.png")}
+    if env == "iphyre":
+        assert any(p.stat().st_ino in frames for p in images), "key frames are hard-linked, not copied"
+
+
+@pytest.fixture(scope="module")
+def cuttherope_run(ray_cluster, tmp_path_factory):
+    run = tmp_path_factory.mktemp("ctr") / "run"
+    config = RunConfig(env="cuttherope", model="mock", runs=2, seed=4, tasks=["b1_l01", "b1_l03", "b2_l05", "b5_l02"])
+    assert evaluate(config, run, RUNTIME).complete
+    return run
+
+
+def check_export(run: Path, out: Path) -> list[dict]:
+    """Every row's observation images exist and are the images its prompt held; datasets loads it."""
+    summary = export([run], out)
+    rows = pq.read_table(out / DATA_FILE).to_pylist()
+    assert len(rows) == summary.rows == sum(len(r.steps) for r in read_records(run))
+    for row in rows:
+        messages = read_prompt(run, row["prompt_digest"])
+        parts = [p for m in messages for p in m.content]
+        current = next(i for i, p in enumerate(parts) if getattr(p, "text", None) == CURRENT_OBSERVATION)
+        observation = [p.image.png for p in parts[current:] if hasattr(p, "image")]
+        assert row["observation_images"] and row["images_not_stored"] == 0
+        assert [(out / p).read_bytes() for p in row["observation_images"]] == observation
+        assert [(out / p).read_bytes() for p in row["images"]] == [i.png for m in messages for i in m.images]
+    assert summary.images == len(list((out / "images").rglob("*.png")))
+    by_digest = list((out / "images" / "sha256").iterdir())  # each prompt image once, named by its bytes
+    assert all(hashlib.sha256(f.read_bytes()).hexdigest() == f.stem for f in by_digest)
+
+    os.environ["HF_DATASETS_OFFLINE"] = os.environ["HF_HUB_OFFLINE"] = "1"
+    import datasets
+
+    ds = datasets.load_dataset("parquet", data_files=str(out / DATA_FILE), cache_dir=str(out.parent / "hf"))["train"]
+    assert ds.num_rows == len(rows) and ds[0]["observation_images"] == rows[0]["observation_images"]
+    import cv2
+
+    assert cv2.imread(str(out / ds[0]["observation_images"][0])) is not None
+    return rows
+
+
+def test_export_of_a_cut_the_rope_run_names_every_input_image(cuttherope_run, tmp_path):
+    rows = check_export(cuttherope_run, tmp_path / "ds")
+    assert any(r["history_images"] for r in rows), "later decisions show earlier scenes"
+    # The first observation of a task is one file, shared by its runs.
+    firsts = {}
+    for r in rows:
+        if r["step"] == 1:
+            firsts.setdefault(r["task"], set()).add(r["observation_images"][0])
+    assert all(len(paths) == 1 for paths in firsts.values())
+
+
+@pytest.mark.slow
+def test_export_of_a_pooltool_run_names_every_input_image(ray_cluster, tmp_path):
+    run = tmp_path / "run"
+    config = RunConfig(env="pooltool", model="mock", runs=1, seed=4, tasks=["rack_000", "rack_001"])
+    assert evaluate(config, run, RuntimeOptions(progress=False, env_workers=1, step_timeout_s=900)).complete
+    rows = check_export(run, tmp_path / "ds")
+    assert len(rows) > 2
+
+
+def test_a_run_from_before_stored_images_still_reads(cuttherope_run, tmp_path):
+    """Old prompts hold "<image NAME: CAPTION>" placeholders and no images/: records, the
+    export and the dashboard still read them; rebuilding a request says why it cannot."""
+    old = tmp_path / "old"
+    shutil.copytree(cuttherope_run, old)
+    shutil.rmtree(old / "images")
+    for prompt in (old / "prompts").iterdir():
+        messages = json.loads(prompt.read_text())
+        for m in messages:
+            m["content"] = [p if isinstance(p, str) else f"<image {p['name']}: {p['caption']}>" for p in m["content"]]
+        prompt.write_text(json.dumps(messages, indent=1))
+    assert read_records(old) == read_records(cuttherope_run)
+    export([old], tmp_path / "ds")
+    rows = pq.read_table(tmp_path / "ds" / DATA_FILE).to_pylist()
+    assert all(r["images_not_stored"] >= 1 and not r["observation_images"] for r in rows)
+    with pytest.raises(RunDirError, match="did not store"):
+        read_prompt(old, rows[0]["prompt_digest"])
+
+
+def test_stored_images_are_validated_and_confined(cuttherope_run, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(cuttherope_run, run)
+    digest = read_records(run)[0].steps[0].prompt
+    image = next(p["image"] for m in json.loads((run / "prompts" / f"{digest}.json").read_text())
+                 for p in m["content"] if isinstance(p, dict))
+    target = run / "images" / f"{image}.png"
+    target.write_bytes(target.read_bytes()[:-10])  # altered: its bytes no longer match its name
+    with pytest.raises(RunDirError, match="missing or altered"):
+        read_prompt(run, digest)
+    secret = tmp_path / "secret.png"
+    shutil.copyfile(cuttherope_run / "images" / f"{image}.png", secret)
+    target.unlink()
+    target.symlink_to(secret)  # leads out of the run directory: not read
+    assert image_file(run, image) is None
+    with pytest.raises(RunDirError, match="missing or altered"):
+        read_prompt(run, digest)
+    for bad in ("../config", "x" * 20, "0" * 19 + "/"):
+        with pytest.raises(RunDirError):
+            read_prompt(run, bad)
+    assert image_file(run, "../" + image) is None
+    # An edited prompt whose image reference is not a digest is not a stored prompt.
+    path = run / "prompts" / f"{digest}.json"
+    path.write_text(re.sub(r'"image": "[0-9a-f]{64}"', '"image": "../../secret"', path.read_text(), count=1))
+    with pytest.raises(RunDirError, match="not a stored prompt"):
+        read_prompt(run, digest)
