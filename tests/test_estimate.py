@@ -11,7 +11,8 @@ from dashboard_support import IPHYRE_TASKS, mock_run
 from deepphy.cli import main
 from deepphy.config import RunConfig
 from deepphy.estimate import _anthropic_image_tokens, _gemini_image_tokens, _openai_image_tokens, estimate
-from deepphy.runs.store import read_records
+from deepphy.chat import ImagePart
+from deepphy.runs.store import read_prompt, read_records
 
 
 def test_image_token_rules_match_the_providers_worked_examples():
@@ -36,8 +37,8 @@ def test_bounds_hold_for_a_real_run(ray_cluster, tmp_path_factory):
     assert est.requests_min <= requests <= est.requests_max
     images = {}  # prompt digest -> images in it
     for prompt in (run / "prompts").iterdir():
-        text = prompt.read_text()
-        images[prompt.stem] = len(re.findall(r"<image [^:>]*: ", text))
+        messages = read_prompt(run, prompt.stem)
+        images[prompt.stem] = sum(isinstance(part, ImagePart) for m in messages for part in m.content)
     first = [images[r.steps[0].prompt] for r in records if r.attempt == 1]
     assert est.images_first == pytest.approx(sum(first) / len(first))
     assert max(images.values()) <= est.images_max

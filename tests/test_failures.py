@@ -38,11 +38,13 @@ def cli(*args: str, timeout: float = 60, env: dict | None = None, prefix: tuple 
     """The CLI's result, with `.started_ray`: whether it started a local Ray instance."""
     environ = {**os.environ, **(env or {})}
     environ.pop("RAY_ADDRESS", None)
+    started = time.time()
     proc = subprocess.Popen([*prefix, sys.executable, "-m", "deepphy.cli", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=environ)
     out, err = proc.communicate(timeout=timeout)
     done = subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
-    done.started_ray = bool(sessions_of(proc.pid))
+    # a session named after this pid but older is another process's (pids are reused on a busy machine)
+    done.started_ray = any(os.path.getmtime(s) >= started - 1 for s in sessions_of(proc.pid))
     return done
 
 
