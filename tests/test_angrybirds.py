@@ -281,6 +281,27 @@ def test_a_pig_dies_when_a_block_falls_on_it():
         assert pig.alive is not dies and world.pigs_killed == int(dies)
 
 
+def test_a_blast_at_one_hut_leaves_the_next_ones_standing():
+    """No dominoes: a black bird that blows up the first of three stone huts 2.5 u apart
+    (wider than a hut is tall) leaves the other two huts and their pigs as they were."""
+    from deepphy.envs.angrybirds.sim import World
+
+    xs = (6.5, 9.0, 11.5)
+    blocks, pigs = [], []
+    for x in xs:
+        blocks += [Block(shape="rect_small", material="stone", x=x + dx, y=0.425, angle=90) for dx in (-0.45, 0.45)]
+        blocks.append(Block(shape="rect_medium", material="wood", x=x, y=0.96))
+        pigs.append(Pig(x=x, y=0.215))
+    for angle, power in ((0.0, 1.0), (5.0, 0.8), (10.0, 0.7)):
+        world = World(_level(blocks, pigs, birds=("black",)))
+        start = {t.index: t.body.position for t in world.things}
+        first = [t for t in world.things if abs(start[t.index].x - xs[0]) < 1.0]
+        others = [t for t in world.things if abs(start[t.index].x - xs[0]) >= 1.0]
+        world.shoot("black", angle, power)
+        assert any(not t.alive for t in first), (angle, power)  # the first hut was hit
+        assert all(t.alive and abs(t.body.position - start[t.index]) < 0.05 for t in others), (angle, power)
+
+
 def test_a_tower_topples_when_its_base_is_hit():
     """A three-storey wooden tower with a pig on top: a flat hit on a leg brings it down."""
     from deepphy.envs.angrybirds.sim import World
