@@ -507,10 +507,15 @@ def test_score_and_stars_follow_birds_used(env):
     env.reset(task("s1_l01"))
     first = env.step(win)
     env.reset(task("s1_l01"))
-    env.step(SPACE.make(90.0, 0.3))
+    miss = env.step(SPACE.make(90.0, 0.3))
     second = env.step(win)
-    assert first.success and second.success
-    assert first.score - second.score == C.SCORE_UNUSED_BIRD
+    assert first.success and second.success and miss.info["pigs_killed"] == 0
+    # Scores without the blocks (the same shot one shot later may break one block more or
+    # less: the structure has had more time to settle) differ by exactly one unused bird.
+    blocks_first = first.info["blocks_destroyed"]
+    blocks_second = miss.info["blocks_destroyed"] + second.info["blocks_destroyed"]
+    assert (first.score - C.SCORE_BLOCK * blocks_first) - (second.score - C.SCORE_BLOCK * blocks_second) \
+        == C.SCORE_UNUSED_BIRD
     assert first.stars == 3 and second.stars < 3
     assert "level won with 2 bird(s) to spare" in first.feedback
 
