@@ -18,6 +18,7 @@ from deepphy.envs.angrybirds.levels import (
     Block,
     Level,
     Pig,
+    Platform,
     level_ids,
     level_json,
     load_level,
@@ -25,6 +26,7 @@ from deepphy.envs.angrybirds.levels import (
 )
 from deepphy.envs.angrybirds.space import Shoot, ShootSpace
 from deepphy.envs.base import InvalidAction, Task
+from deepphy.seeding import seeded_rng
 
 # The bird sequences of the reference set (R red, Y yellow, B blue, K black).
 REFERENCE_BIRDS = {
@@ -61,18 +63,46 @@ def test_registered_with_34_levels_in_two_scenes():
     assert spec.max_steps == max(len(b) for b in REFERENCE_BIRDS.values()) == 8
 
 
+# Plans below the 0.2 robustness target, each with one narrow shot in a 3-shot plan: a known miss
+# (docs/environments.md, Angry Birds calibration), to redesign. Fixing one means removing it here.
+FRAGILE_PLANS = {"s1_l09", "s1_l16", "s2_l12"}
+
+
 def test_levels_have_the_reference_birds_and_stored_plans():
+    fragile = set()
     for level_id in level_ids():
         level = load_level(level_id)
         assert "".join(next(k for k, v in C.BIRD_LETTERS.items() if v == b) for b in level.birds) == \
             REFERENCE_BIRDS[level_id], level_id
         assert level.oracle is not None and level.stars is not None, level_id
-        # The thresholds follow the documented rule from the oracle's best score ...
-        assert level.stars == star_thresholds(level, level.oracle.score), level_id
+        # The thresholds follow the documented rule from what the oracle's plan measured ...
+        assert level.stars == star_thresholds(level, len(level.oracle.plan), level.oracle.blocks_destroyed), level_id
         # ... so 3 stars are reachable (the oracle's plan earns them) and rank above 2.
-        assert level.least_win_score <= level.stars.two <= level.stars.three <= level.oracle.score
+        assert level.least_win_score <= level.stars.two < level.stars.three <= level.oracle.score
+        assert level.oracle.robustness >= 0.1 and level.idea, level_id
+        if level.oracle.robustness < 0.2:
+            fragile.add(level_id)
         # The writer's JSON reads back as the same level.
         assert Level.model_validate_json(level_json(level)) == level
+    assert fragile == FRAGILE_PLANS
+
+
+def test_stars_reward_economy_and_destruction():
+    """The star rule: 3 stars need the oracle's economy AND most of its destruction, so a
+    one-shot win that breaks little is 2 stars; each extra bird costs a star."""
+    level = _level([], [Pig(x=12.0, y=0.215)] * 2, birds=("red",) * 4)
+    stars = star_thresholds(level, shots=1, blocks=8)  # the oracle: one bird, 8 blocks broken
+    pigs = 2 * C.SCORE_PIG
+
+    def score(shots: int, blocks: int) -> int:
+        return pigs + C.SCORE_BLOCK * blocks + C.SCORE_UNUSED_BIRD * (4 - shots)
+
+    assert stars.of(True, score(1, 8)) == 3 and stars.of(True, score(1, 6)) == 3  # 3/4 of its destruction
+    assert stars.of(True, score(1, 5)) == 2 and stars.of(True, score(1, 0)) == 2  # one shot, little broken
+    assert stars.of(True, score(2, 8)) == 2 and stars.of(True, score(2, 0)) == 1
+    assert stars.of(True, score(3, 8)) == 1 and stars.of(False, score(1, 8)) == 0
+    every_bird = star_thresholds(level, shots=4, blocks=8)  # none to spare: destruction decides
+    assert every_bird.of(True, score(4, 2)) == 2 and every_bird.of(True, score(4, 1)) == 1
 
 
 def test_level_data_is_validated():
@@ -183,30 +213,70 @@ def test_space_module_is_light():
 # -- physics: one test per mechanic -------------------------------------------------------------
 
 
-def _level(blocks, pigs, birds=("red",)) -> Level:
-    return Level(id="s1_l01", title="test", birds=list(birds), blocks=blocks, pigs=pigs)
+def _level(blocks, pigs, birds=("red",), platforms=()) -> Level:
+    return Level(id="s1_l01", title="test", idea="a test scene", birds=list(birds), blocks=blocks, pigs=pigs,
+                 platforms=list(platforms))
 
 
-def _braced_post(material: str) -> list[Block]:
-    """A post with two heavy stone posts right behind it, so a hit cannot just push it away."""
-    return [Block(shape="rect_medium", material=material, x=5.0, y=0.84, angle=90)] + [
-        Block(shape="rect_big", material="stone", x=5.23 + 0.23 * k, y=1.03, angle=90) for k in range(2)]
+FAR_PIG = [Pig(x=15.5, y=0.215)]
+
+
+def _braced_post(material: str) -> Level:
+    """A post against a fixed wall, so a hit cannot just push it away."""
+    return _level([Block(shape="rect_medium", material=material, x=5.0, y=0.84, angle=90)], FAR_PIG,
+                  platforms=[Platform(x=5.36, y=1.0, w=0.5, h=2.0)])
 
 
 def test_a_block_breaks_under_a_hard_hit_and_survives_a_soft_one():
     from deepphy.envs.angrybirds.sim import World
 
-    far_pig = [Pig(x=14.0, y=0.215)]
-    hard = World(_level(_braced_post("ice"), far_pig))
+    hard = World(_braced_post("ice"))
     shot = hard.shoot("red", 0.0, 1.0)
     assert shot.first_hit == "ice rect medium" and not hard.things[0].alive
     assert shot.blocks_destroyed == {"ice": 1} and hard.blocks_destroyed == 1
 
-    soft = World(_level(_braced_post("ice"), far_pig))
+    soft = World(_braced_post("ice"))
     shot = soft.shoot("red", 0.0, 0.5)
     post = soft.things[0]
     assert shot.first_hit == "ice rect medium" and post.alive and 0 < post.hp < post.max_hp  # dented, standing
     assert soft.blocks_destroyed == 0
+
+
+@pytest.mark.parametrize("power", [0.5, 0.75, 1.0])
+def test_a_bird_shot_flat_stops_within_the_documented_distance(power):
+    """No rolling luck: a bird that lands on open ground stops within BIRD_STOP_DISTANCE of
+    where it first touched it, and leaves the world before the shot ends."""
+    from deepphy.envs.angrybirds.sim import World
+
+    world = World(_level([], FAR_PIG))
+    shot = world.shoot("red", 0.0, power, record=True, snapshot_every=1 / 60)
+    assert shot.first_hit == "the ground" and shot.at_rest
+    seen = [(s.t, next(p.x for p in s.poses if p.thing.kind == "bird")) for s in shot.snapshots
+            if any(p.thing.kind == "bird" for p in s.poses)]
+    landed = next(x for t, x in seen if t >= shot.first_hit_time)
+    stopped = seen[-1][1]
+    assert 0 < stopped - landed <= C.BIRD_STOP_DISTANCE
+    assert not world.alive("bird") and shot.sim_time < shot.first_hit_time + C.SPENT_BIRD_TIME + 2 * C.REST_HOLD
+
+
+def _fall_kill_height(size: str) -> float:
+    """The least drop (bottom of the pig to the ground, 0.02 u resolution) that kills a pig."""
+    from deepphy.envs.angrybirds.sim import World
+
+    lo, hi = 0.0, 6.0
+    while hi - lo > 0.02:
+        h = (lo + hi) / 2
+        world = World(_level([], FAR_PIG))
+        pig = world.add_pig(size, 8.0, C.PIG_RADIUS[size] + h)
+        world.advance(3.0)
+        lo, hi = (h, hi) if pig.alive else (lo, h)
+    return hi
+
+
+def test_pig_fall_heights_are_ordered_by_size():
+    heights = [_fall_kill_height(size) for size in ("small", "medium", "big")]
+    assert heights == sorted(heights) and heights[0] + 0.3 < heights[1] and heights[1] + 0.3 < heights[2], heights
+    assert heights[0] > 0.5 and heights[2] > 2.0, heights  # small pigs are not glass, big ones need a real fall
 
 
 def test_a_pig_dies_when_a_block_falls_on_it():
@@ -215,23 +285,107 @@ def test_a_pig_dies_when_a_block_falls_on_it():
     for dx, dies in ((0.0, True), (1.5, False)):
         world = World(_level([], [Pig(size="medium", x=10.0, y=C.PIG_RADIUS["medium"])]))
         pig = world.things[0]
-        world.add_block("rect_small", "stone", 10.0 + dx, 3.0)
+        world.add_block("rect_fat", "stone", 10.0 + dx, 6.0)
         world.advance(3.0)
         assert pig.alive is not dies and world.pigs_killed == int(dies)
 
 
-def test_a_tower_topples_when_its_base_is_hit():
+def test_a_blast_at_one_hut_leaves_the_next_ones_standing():
+    """No dominoes: a black bird that blows up the first of three stone huts 2.5 u apart
+    (wider than a hut is tall) leaves the other two huts and their pigs as they were."""
     from deepphy.envs.angrybirds.sim import World
 
-    world = World(load_level("s1_l04"))  # a three-storey wooden tower, a small pig on top
-    beams = [t for t in world.things if t.kind == "block" and t.name == "wood rect medium"]
-    top = max(beams, key=lambda t: t.body.position.y)
+    xs = (6.5, 9.0, 11.5)
+    blocks, pigs = [], []
+    for x in xs:
+        blocks += [Block(shape="rect_small", material="stone", x=x + dx, y=0.425, angle=90) for dx in (-0.45, 0.45)]
+        blocks.append(Block(shape="rect_medium", material="wood", x=x, y=0.96))
+        pigs.append(Pig(x=x, y=0.215))
+    for angle, power in ((0.0, 1.0), (5.0, 0.8), (10.0, 0.7)):
+        world = World(_level(blocks, pigs, birds=("black",)))
+        start = {t.index: t.body.position for t in world.things}
+        first = [t for t in world.things if abs(start[t.index].x - xs[0]) < 1.0]
+        others = [t for t in world.things if abs(start[t.index].x - xs[0]) >= 1.0]
+        world.shoot("black", angle, power)
+        assert any(not t.alive for t in first), (angle, power)  # the first hut was hit
+        assert all(t.alive and abs(t.body.position - start[t.index]) < 0.05 for t in others), (angle, power)
+
+
+def test_a_tower_topples_when_its_base_is_hit():
+    """A three-storey wooden tower with a pig on top: a flat hit on a leg brings it down."""
+    from deepphy.envs.angrybirds.sim import World
+
+    legs, beams = [], []
+    for floor in range(3):
+        y0 = floor * 1.07
+        legs += [Block(shape="rect_small", material="wood", x=x, y=y0 + 0.425, angle=90) for x in (6.29, 7.71)]
+        beams.append(Block(shape="rect_medium", material="wood", x=7.0, y=y0 + 0.96))
+    world = World(_level(legs + beams, [Pig(x=7.0, y=3.425)]))
+    top = max((t for t in world.things if t.name == "wood rect medium"), key=lambda t: t.body.position.y)
+    pig = world.alive("pig")[0]
     before = top.body.position.y
-    pig = max((t for t in world.things if t.kind == "pig"), key=lambda t: t.body.position.y)  # on top
     shot = world.shoot("red", 0.0, 1.0)  # flat: the bird meets the lowest leg
     assert shot.first_hit == "wood rect small" and shot.first_hit_time < 1.0
     assert not top.alive or top.body.position.y < before - 1.5  # the top floor came down
     assert not pig.alive or pig.body.position.y < before - 1.5  # fell with it
+
+
+def _drift(world) -> tuple[float, int, int]:
+    """(largest move, bodies gone, bodies hurt) over 10 idle seconds."""
+    before = {t.index: (t.body.position, t.hp, t.alive) for t in world.things}
+    world.advance(10.0)
+    moved = max((abs(t.body.position - before[t.index][0]) for t in world.things if t.alive), default=0.0)
+    gone = sum(1 for t in world.things if before[t.index][2] and not t.alive)
+    hurt = sum(1 for t in world.things if t.alive and t.hp != before[t.index][1])
+    return moved, gone, hurt
+
+
+def test_every_level_left_idle_for_10_s_changes_nothing():
+    from deepphy.envs.angrybirds.sim import World
+
+    for level_id in level_ids():
+        moved, gone, hurt = _drift(World(load_level(level_id)))
+        assert moved < 0.01 and gone == 0 and hurt == 0, (level_id, moved, gone, hurt)
+
+
+def test_a_shot_ends_on_the_state_the_next_one_starts_from():
+    """After a shot no bird is left and idling 10 s more changes nothing: the settled
+    picture is the true next state."""
+    from deepphy.envs.angrybirds.sim import World
+
+    for k, level_id in enumerate(level_ids()[::4]):
+        level = load_level(level_id)
+        world = World(level)
+        rng = np.random.default_rng(k)
+        for bird in level.birds[:2]:
+            shot = world.shoot(bird, float(rng.uniform(0, 60)), float(rng.uniform(0.5, 1.0)))
+            assert shot.at_rest and not world.alive("bird") and not world.moving(), level_id
+        moved, gone, hurt = _drift(world)
+        assert moved < 0.01 and gone == 0 and hurt == 0, (level_id, moved, gone, hurt)
+
+
+@pytest.mark.slow
+def test_no_random_shot_of_a_thousand_runs_into_the_cap():
+    """1,000 reference-baseline shots over the levels: each ends because the scene came to
+    rest, never at SHOT_MAX_TIME with bodies still moving."""
+    from deepphy.envs.angrybirds.sim import World
+
+    shots, episode = 0, 0
+    while shots < 1000:
+        for level_id in level_ids():
+            level = load_level(level_id)
+            world = World(level)
+            rng = seeded_rng("cap-test", level_id, episode)
+            for bird in level.birds:
+                action = SPACE.parse(SPACE.reference_reply(rng))
+                shot = world.shoot(bird, action.angle, action.power)
+                shots += 1
+                assert shot.at_rest and not world.moving(), (level_id, episode, action)
+                if world.pigs_left == 0 or shots == 1000:
+                    break
+            if shots == 1000:
+                break
+        episode += 1
 
 
 def _shoot(level: Level, bird: str, angle: float, power: float):
@@ -322,12 +476,15 @@ def test_same_shots_give_bit_identical_states_in_fresh_processes():
 
 
 def test_reset_observation_text_and_picture(env):
+    level = load_level("s2_l12")
     obs = env.reset(task("s2_l12"))
     assert obs.images[0].size == (960, 540) and obs.action_space == SPACE
     lines = obs.text.splitlines()
-    assert "blue bird (shot 1 of at most 6)" in lines[1]
-    assert lines[2] == "Birds after it, in order: blue, yellow, yellow, yellow, black."
-    assert lines[3] == "Pigs left: 6." and lines[4] == "Shots used: 0. Score so far: 0."
+    assert lines[0] == "Level s2_l12." and level.title not in obs.text  # no title without physics_hints
+    assert f"blue bird (shot 1 of at most {len(level.birds)})" in lines[1]
+    assert lines[2] == f"Birds after it, in order: {', '.join(level.birds[1:])}."
+    assert lines[3] == f"Pigs left: {len(level.pigs)}." and lines[4] == "Shots used: 0. Score so far: 0."
+    assert lines[5] == f"Stars for a win: 1; 2 from a final score of {level.stars.two}; 3 from {level.stars.three}."
     img = obs.images[0].to_array()
     # The scene shows pigs (green) and blocks of all three materials.
     from deepphy.envs.angrybirds import render as R
@@ -343,7 +500,7 @@ def test_missing_every_shot_runs_out_of_birds(env):
     assert [r.done for r in results] == [False, False, True]
     last = results[-1]
     assert last.truncated and not last.terminated and not last.success and last.stars == 0 and last.score == 0
-    assert "level lost" in last.feedback and results[0].observation.text.splitlines()[-1] == \
+    assert "level lost" in last.feedback and results[0].observation.text.splitlines()[4] == \
         "Shots used: 1. Score so far: 0."
     assert [f.name for f in results[0].key_frames] == ["shot_1_flight", "shot_1"]
     assert results[0].info["first_hit"] == "the ground" and results[0].info["pigs_left"] == 1
@@ -359,10 +516,15 @@ def test_score_and_stars_follow_birds_used(env):
     env.reset(task("s1_l01"))
     first = env.step(win)
     env.reset(task("s1_l01"))
-    env.step(SPACE.make(90.0, 0.3))
+    miss = env.step(SPACE.make(90.0, 0.3))
     second = env.step(win)
-    assert first.success and second.success
-    assert first.score - second.score == C.SCORE_UNUSED_BIRD
+    assert first.success and second.success and miss.info["pigs_killed"] == 0
+    # Scores without the blocks (the same shot one shot later may break one block more or
+    # less: the structure has had more time to settle) differ by exactly one unused bird.
+    blocks_first = first.info["blocks_destroyed"]
+    blocks_second = miss.info["blocks_destroyed"] + second.info["blocks_destroyed"]
+    assert (first.score - C.SCORE_BLOCK * blocks_first) - (second.score - C.SCORE_BLOCK * blocks_second) \
+        == C.SCORE_UNUSED_BIRD
     assert first.stars == 3 and second.stars < 3
     assert "level won with 2 bird(s) to spare" in first.feedback
 
@@ -387,12 +549,61 @@ def test_mock_records_are_identical_for_the_same_seed():
         assert a.success == (a.stars is not None and a.stars >= 1)
 
 
-def test_prompt_names_the_numbers_of_the_game(env):
+def test_reference_baseline_of_the_calibration_is_what_mock_plays():
+    """`deepphy solve ... calibrate` draws the reference baseline as MOCK does in a run:
+    the same shots, so the same outcome and score, episode by episode."""
+    from deepphy.agents import MockModel
+    from deepphy.config import RunConfig
+    from deepphy.envs.angrybirds.env import AngryBirdsEnv
+    from deepphy.envs.angrybirds.oracle import reference_episode
+    from deepphy.protocol import LocalEnv, MemoryArtifacts, run_attempt
+
+    spec = get_spec("angrybirds")
+    config = RunConfig(env="angrybirds", model="mock", runs=3, seed=7)
+    for level_id, run in (("s1_l01", 0), ("s1_l12", 2), ("s2_l09", 1)):
+        record = asyncio.run(run_attempt(spec, spec.load_prompt(), config, task(level_id), run, 1, [],
+                                         LocalEnv(AngryBirdsEnv()), MockModel(), MemoryArtifacts()))
+        episode = reference_episode(load_level(level_id), 7, run)
+        assert (record.success, record.score, len(record.steps)) == (episode.won, episode.score, episode.shots)
+        assert (record.stars or 0) == episode.stars
+
+
+def test_feedback_never_contradicts_itself(env):
+    """A shot that touched nothing kills nothing, unless the black bird blew up in the air."""
+    rng = np.random.default_rng(3)
+    seen = 0
+    for level_id in level_ids()[::3]:
+        env.reset(task(level_id))
+        result = env.step(SPACE.make(float(rng.uniform(0, 90)), float(rng.uniform(0.5, 1.0))))
+        text = result.feedback
+        if "touched nothing" in text:
+            seen += 1
+            assert "pigs killed: 0" in text or "exploded in the air" in text, text
+        else:
+            assert f"first hit: {result.info['first_hit']}" in text
+        assert f"pigs left: {result.info['pigs_left']}" in text
+    assert seen < 12
+
+
+def test_prompt_gives_the_reference_information_and_ballistics_only_with_physics_hints():
+    from deepphy.envs.angrybirds.env import AngryBirdsEnv
     from deepphy.envs.angrybirds.prompt import AngryBirdsPrompt
 
-    obs = env.reset(task("s2_l07"))
     prompt = AngryBirdsPrompt()
-    text = prompt.rules(task("s2_l07"), obs)
-    assert "shoot(angle=A, power=P)" in text and f"P x {C.MAX_LAUNCH_SPEED:g} units/s" in text
-    assert f"1 unit = {960 / C.WORLD_W:g} pixels" in text and f"{C.SCORE_UNUSED_BIRD}" in text
-    assert SPACE.parse(prompt.example(obs)) == Shoot(angle=30, power=0.85)
+    level = load_level("s2_l07")
+    texts = {}
+    for hints in (False, True):
+        env = AngryBirdsEnv(AngryBirdsEnv.Options(physics_hints=hints))
+        tasks = {t.id: t for t in AngryBirdsEnv.tasks(env.options)}
+        obs = env.reset(tasks["s2_l07"])
+        texts[hints] = (prompt.rules(tasks["s2_l07"], obs), obs.text)
+        assert SPACE.parse(prompt.example(obs)) == Shoot(angle=30, power=0.85)
+    (plain, plain_obs), (hinted, hinted_obs) = texts[False], texts[True]
+    for text in (plain, hinted):  # both: the syntax, the birds' abilities, the scoring rule
+        assert "shoot(angle=A, power=P)" in text and "splits into three" in text and "punches through wood" in text
+        assert f"{C.SCORE_PIG} per pig" in text and f"{C.SCORE_UNUSED_BIRD}" in text and "thresholds" in text
+    ballistics = [f"P x {C.MAX_LAUNCH_SPEED:g} units/s", f"1 unit = {960 / C.WORLD_W:g} pixels",
+                  f"gravity is {C.GRAVITY:.3g}", "leaves from pixel"]
+    assert not any(b in plain for b in ballistics) and all(b in hinted for b in ballistics)
+    assert level.title not in plain_obs and f"Level s2_l07: {level.title}." in hinted_obs
+    assert AngryBirdsEnv.Options.model_validate({"physics_hints": "true"}).physics_hints is True

@@ -7,8 +7,14 @@ it has at most as many decisions as the level has birds. One attempt per level.
 
 Score: SCORE_PIG per pig killed, SCORE_BLOCK per block destroyed and, when the level is
 won, SCORE_UNUSED_BIRD per bird not launched. Stars (on the last step): 0 when lost, else
-1, 2 or 3 by the level's thresholds (levels.star_thresholds). Every step carries the score
-so far; `info` has the shot's details.
+1, 2 or 3 by the level's thresholds (levels.star_thresholds), which the observation text
+states. Every step carries the score so far; `info` has the shot's details.
+
+Option `physics_hints` (default off, an ablation): the observation names the level's
+title and the prompt adds the ballistics (gravity, launch speed per unit of power, the
+picture's scale and launch pixel) and the abilities' numbers. By default the model gets
+what the reference gave: the picture, the birds in order with their abilities, the action
+syntax and the scoring rule.
 """
 
 from __future__ import annotations
@@ -19,16 +25,21 @@ from deepphy.envs.angrybirds.levels import Level, level_ids, load_level
 from deepphy.envs.angrybirds.render import render
 from deepphy.envs.angrybirds.sim import ShotResult, World
 from deepphy.envs.angrybirds.space import Shoot, ShootSpace
-from deepphy.envs.base import Action, Environment, Observation, StepResult, Task
+from deepphy.envs.base import Action, EnvOptions, Environment, Observation, StepResult, Task
 from deepphy.envs.images import Image, stack_frames
 
 FLIGHT_FRAMES = 4  # frames in the strip of a shot's flight
 
 
+class AngryBirdsOptions(EnvOptions):
+    physics_hints: bool = False  # the ballistics constants and the level's title (an ablation)
+
+
 class AngryBirdsEnv(Environment):
     spec = SPEC
+    Options = AngryBirdsOptions
 
-    def __init__(self, options=None) -> None:
+    def __init__(self, options: AngryBirdsOptions | None = None) -> None:
         super().__init__(options)
         self._level: Level | None = None
         self._world: World | None = None
@@ -41,7 +52,8 @@ class AngryBirdsEnv(Environment):
         for level_id in level_ids():
             level = load_level(level_id)
             out.append(Task(env=SPEC.name, id=level_id, group=level.group,
-                            params={"birds": len(level.birds), "pigs": len(level.pigs)}))
+                            params={"birds": len(level.birds), "pigs": len(level.pigs),
+                                    "physics_hints": options.physics_hints}))
         return out
 
     # -- the contract ---------------------------------------------------------------
@@ -127,21 +139,29 @@ class AngryBirdsEnv(Environment):
         level, world = self._level, self._world
         waiting = self._waiting()
         after = ", ".join(waiting[1:]) if len(waiting) > 1 else "none (this is the last bird)"
+        hints = self.options.physics_hints  # type: ignore[attr-defined]
         lines = [
-            f"Level {level.id}: {level.title}.",
+            f"Level {level.id}: {level.title}." if hints else f"Level {level.id}.",
             f"Bird in the slingshot: the {C.BIRD_NAMES[waiting[0]]} "
             f"(shot {self._shots + 1} of at most {len(level.birds)}).",
             f"Birds after it, in order: {after}.",
             f"Pigs left: {world.pigs_left}.",
             f"Shots used: {self._shots}. Score so far: {world.score(self._shots)}.",
         ]
+        if level.stars is not None:
+            lines.append(f"Stars for a win: 1; 2 from a final score of {level.stars.two}; "
+                         f"3 from {level.stars.three}.")
         return Observation(images=[scene], text="\n".join(lines), action_space=ShootSpace())
 
     def _describe(self, shot: ShotResult, action: Shoot, won: bool, done: bool, score: int, stars: int | None) -> str:
         level, world = self._level, self._world
-        space = ShootSpace()
-        parts = [f"Shot {self._shots} ({C.BIRD_NAMES[shot.bird]}, {space.format(action)})"]
-        parts.append(f"first hit: {shot.first_hit}" if shot.first_hit else "it hit nothing and left the scene")
+        parts = [f"Shot {self._shots} ({C.BIRD_NAMES[shot.bird]}, {ShootSpace().format(action)})"]
+        if shot.first_hit:
+            parts.append(f"first hit: {shot.first_hit}")
+        elif shot.birds_left_world:
+            parts.append("it touched nothing and flew out of the picture")
+        else:
+            parts.append("it touched nothing")
         if shot.ability:
             parts.append(shot.ability)
         parts.append(f"pigs killed: {shot.pigs_killed}")

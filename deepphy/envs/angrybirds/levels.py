@@ -2,16 +2,20 @@
 
 A level lists its birds (in launch order) and its objects, each by centre position in
 world units (x right, y up, the ground's surface at y = 0) and rotation in degrees
-(counter-clockwise). The oracle (solve.py) adds its winning plan, its score and the star
-thresholds derived from it. Files are written one object per line, so they read and
-diff well and can be edited by hand; after editing a structure, run
-`deepphy solve --env angrybirds search --levels <id>` to refresh the plan and thresholds.
+(counter-clockwise); fixed terrain is boxes (`platforms`) or convex polygons (`terrain`:
+slopes, hills). Its `idea` says what the level teaches or tests; its `title` is shown
+only with the `physics_hints` option. The oracle (solve.py) adds its winning plan, what
+that plan measured, and the star thresholds derived from it (`star_thresholds`). Files
+are written one object per line, so they read and diff well and can be edited by hand;
+after editing a structure, run `deepphy solve --env angrybirds search --levels <id>` to
+refresh the plan and thresholds.
 """
 
 from __future__ import annotations
 
 import functools
 import json
+import math
 import re
 from pathlib import Path
 from typing import Literal
@@ -26,10 +30,11 @@ from deepphy.envs.angrybirds.constants import (
     POWER_MAX,
     POWER_MIN,
     SCENE_LEVELS,
+    SCORE_BLOCK,
     SCORE_PIG,
-    STAR_ROUNDING,
-    THREE_STAR_FRACTION,
-    TWO_STAR_FRACTION,
+    SCORE_UNUSED_BIRD,
+    THREE_STAR_DESTRUCTION,
+    TWO_STAR_DESTRUCTION,
 )
 
 LEVEL_DIR = Path(__file__).parent / "levels"
@@ -39,7 +44,7 @@ Bird = Literal["red", "yellow", "blue", "black"]
 Material = Literal["wood", "ice", "stone"]
 Shape = Literal[
     "rect_big", "rect_fat", "rect_medium", "rect_small", "rect_tiny", "square_hole",
-    "square_small", "square_tiny", "triangle", "circle", "circle_small",
+    "square_small", "square_tiny", "triangle", "triangle_hole", "circle", "circle_small",
 ]
 
 
@@ -80,6 +85,12 @@ class Platform(_Item):
     angle: float = 0.0
 
 
+class Terrain(_Item):
+    """A static, unbreakable convex polygon (a slope or a hill), corners in world units."""
+
+    points: list[tuple[float, float]] = Field(min_length=3, max_length=12)
+
+
 class Shot(_Item):
     angle: float = Field(ge=ANGLE_MIN, le=ANGLE_MAX)
     power: float = Field(ge=POWER_MIN, le=POWER_MAX)
@@ -96,23 +107,27 @@ class Stars(_Item):
 
 
 class Oracle(_Item):
-    """What the oracle found: its best winning plan and that plan's outcome."""
+    """What the oracle found (solve.py): a winning plan with the fewest birds it needs,
+    chosen for robustness, and what that plan measured."""
 
     plan: list[Shot]
     score: int
     blocks_destroyed: int
-    searched: int  # shots simulated by the search
+    robustness: float = Field(ge=0, le=1)  # share of the plan's neighbourhood that still wins
+    searched: int  # plans simulated by the search
+    shorter_tried: int  # of those, plans with fewer shots than `plan`: none won
 
 
 class Level(_Item):
     id: str = Field(pattern=LEVEL_ID.pattern)
-    title: str
-    idea: str = ""  # what the level is about (for the next designer)
+    title: str  # shown to the model only with the physics_hints option
+    idea: str = Field(min_length=1)  # what the level teaches or tests (for designers and the docs)
     birds: list[Bird] = Field(min_length=1, max_length=MAX_BIRDS)
     blocks: list[Block] = Field(default_factory=list)
     pigs: list[Pig] = Field(min_length=1)
     tnt: list[Tnt] = Field(default_factory=list)
     platforms: list[Platform] = Field(default_factory=list)
+    terrain: list[Terrain] = Field(default_factory=list)
     stars: Stars | None = None  # set by the oracle
     oracle: Oracle | None = None
 
@@ -136,14 +151,19 @@ class Level(_Item):
         return SCORE_PIG * len(self.pigs)
 
 
-def star_thresholds(level: Level, best: int) -> Stars:
-    """The documented rule: thresholds between the least win score W and the oracle's best B."""
-    w = level.least_win_score
-
-    def at(fraction: float) -> int:
-        return int(w + fraction * (best - w)) // STAR_ROUNDING * STAR_ROUNDING
-
-    return Stars(two=max(at(TWO_STAR_FRACTION), w), three=max(at(THREE_STAR_FRACTION), w))
+def star_thresholds(level: Level, shots: int, blocks: int) -> Stars:
+    """The documented rule (constants.py), from the oracle's plan: `shots` birds used and
+    `blocks` destroyed. 3 stars: the oracle's economy and THREE_STAR_DESTRUCTION of its
+    destruction; 2 stars: one bird fewer to spare, or (with none to spare)
+    TWO_STAR_DESTRUCTION of its destruction."""
+    spare = len(level.birds) - shots
+    pigs = level.least_win_score
+    three = pigs + SCORE_UNUSED_BIRD * spare + SCORE_BLOCK * math.ceil(THREE_STAR_DESTRUCTION * blocks - 1e-9)
+    if spare >= 1:
+        two = three - SCORE_UNUSED_BIRD
+    else:
+        two = pigs + SCORE_BLOCK * math.ceil(TWO_STAR_DESTRUCTION * blocks - 1e-9)
+    return Stars(two=two, three=three)
 
 
 def level_ids() -> list[str]:

@@ -1,4 +1,11 @@
-"""Angry Birds prompt: launch the bird in the slingshot; kill every pig with the birds given."""
+"""Angry Birds prompt: launch the bird in the slingshot; kill every pig with the birds given.
+
+By default it says what the reference prompt said (the picture's legend, the birds and
+their abilities in words, the action syntax, the scoring rule), nothing a model could aim
+with by arithmetic. With the environment option `physics_hints` (an ablation; the task's
+params carry it) it adds the ballistics: gravity, launch speed per unit of power, the
+picture's scale and launch pixel, and the abilities' numbers.
+"""
 
 from deepphy.envs.angrybirds import constants as C
 from deepphy.envs.base import Observation, Task
@@ -12,13 +19,8 @@ def _g(x: float) -> str:
 class AngryBirdsPrompt(EnvPrompt):
     def rules(self, task: Task, observation: Observation) -> str:
         w, h = observation.images[0].size
-        px = w / C.WORLD_W  # pixels per world unit
-        sling_x = C.SLING_X * px
-        sling_y = h - (C.SLING_Y - C.GROUND_Y + C.GROUND_DEPTH) * px
-        ground_y = h - C.GROUND_DEPTH * px
-        blast = C.BLACK_BLAST["radius"]
         factor = C.BIRD_MATERIAL_FACTOR
-        speed, split = _g(C.MAX_LAUNCH_SPEED), _g(C.BLUE_SPLIT_DEGREES)
+        hints = self._hints(w, h) if task.params.get("physics_hints") else ""
         return f"""You are playing Angry Birds, level "{task.id}": launch birds from a slingshot to kill every pig.
 
 The picture is a side view ({w}x{h} pixels; gravity pulls down):
@@ -26,45 +28,62 @@ The picture is a side view ({w}x{h} pixels; gravity pulls down):
   birds waiting on the ground behind it come next, the nearest one first;
 - pigs are green round faces; small, medium and big pigs (bigger ones take more to kill);
 - blocks are light brown (wood), pale blue (ice) or gray (stone): bars, squares, hollow
-  squares, triangles and round logs. Ice breaks easily, wood less so, stone hardly at all.
-  A damaged block turns darker and shows black cracks; a hurt pig shows a purple bruise;
-- dark brown-gray boxes are fixed platforms: they never move or break;
+  squares, triangles, hollow triangles and round logs. Ice breaks easily, wood less so,
+  stone hardly at all. A damaged block turns darker and shows black cracks; a hurt pig
+  shows a purple bruise;
+- dark brown-gray shapes are fixed ledges and slopes: they never move or break;
 - red crates marked TNT explode when hit hard, damaging and throwing everything nearby;
 - white dots trace the flight of the previous shot, up to where the bird first hit something.
 The text under the picture names the bird in the slingshot, the birds after it, the pigs
-left, the shots used and the score so far.
+left, the shots used, the score so far and the level's star thresholds.
 
 Goal: kill every pig with the level's birds, launched one at a time in their fixed order.
 A pig dies when it is hit hard enough: by a bird, by a falling or flying block, by a fall
 of its own, or by an explosion; a pig pushed out of the picture dies too. Blocks break
-the same way. After each shot the scene is simulated until everything is at rest; then
-you see it and choose the next shot. The level is won as soon as no pig is left, and lost
-when the birds run out first.
+the same way. After each shot the scene is simulated until everything is at rest (a spent
+bird disappears once it lies still); then you see it and choose the next shot. The level
+is won as soon as no pig is left, and lost when the birds run out first.
 
 The birds (their abilities act by themselves; you only choose the launch):
 - red: a plain bird.
-- yellow: {_g(C.ABILITY_TIME)} s after launch it dashes forward, {_g(C.YELLOW_BOOST)} units/s faster along its
-  flight; it punches through wood ({_g(factor['yellow']['wood'])}x damage to wood).
-- blue: {_g(C.ABILITY_TIME)} s after launch it splits into three small birds, {split} degrees apart; it
-  shatters ice ({_g(factor['blue']['ice'])}x damage to ice).
+- yellow: {_g(C.ABILITY_TIME)} s after launch it dashes forward, much faster along its flight; it
+  punches through wood ({_g(factor['yellow']['wood'])}x damage to wood).
+- blue: {_g(C.ABILITY_TIME)} s after launch it splits into three small birds that fan out slightly;
+  it shatters ice ({_g(factor['blue']['ice'])}x damage to ice).
 - black: a bomb. It explodes at its first impact (or {_g(C.BLACK_FUSE)} s after launch if it has hit
-  nothing by then), damaging and throwing everything within {_g(blast)} units ({_g(blast * px)} pixels);
-  its impact does {_g(factor['black']['stone'])}x damage to stone.
+  nothing by then), damaging and throwing everything near it; its impact does
+  {_g(factor['black']['stone'])}x damage to stone.
 A yellow or blue bird that hits something before {_g(C.ABILITY_TIME)} s does not use its ability.
 
 Action syntax (one line): shoot(angle=A, power=P)
 - A is the launch angle in degrees above the horizontal, from {_g(C.ANGLE_MIN)} to {_g(C.ANGLE_MAX)}: 0 shoots
   straight to the right, 45 diagonally up and to the right, 90 straight up.
-- P is the power, from {_g(C.POWER_MIN)} to {_g(C.POWER_MAX)}: the bird leaves the slingshot at P x {speed} units/s.
-- Geometry for aiming: 1 unit = {_g(px)} pixels; gravity is {_g(C.GRAVITY)} units/s^2 downwards; the bird
-  leaves from pixel ({sling_x:.0f}, {sling_y:.0f}) of the picture (x to the right, y down from the top
-  edge); the ground's surface is at pixel row {ground_y:.0f}. There is no air resistance.
+- P is the power, from {_g(C.POWER_MIN)} to {_g(C.POWER_MAX)}: how far the slingshot is pulled (1 = fully);
+  the bird's launch speed is proportional to it.
 - A and P are used to {C.ACTION_DECIMALS} decimal places. A reply that does not give one such shot, or
   gives a value out of range, is an invalid action: it is recorded as such and ends the level, lost.
-
+{hints}
 Score: {C.SCORE_PIG} per pig killed, {C.SCORE_BLOCK} per block destroyed and, when the level is won,
-{C.SCORE_UNUSED_BIRD} per bird left unused. A win earns 1 star; a high score (fewer birds used, more
-destruction) earns 2 or 3 stars."""
+{C.SCORE_UNUSED_BIRD} per bird left unused. Stars: a win earns 1 star, 2 or 3 stars when its final
+score reaches the level's thresholds (stated under the picture). The thresholds are set so that
+3 stars need both: winning with as few birds as good play needs, and destroying much on the way."""
+
+    @staticmethod
+    def _hints(w: int, h: int) -> str:
+        px = w / C.WORLD_W  # pixels per world unit
+        sling_x = C.SLING_X * px
+        sling_y = h - (C.SLING_Y - C.GROUND_Y + C.GROUND_DEPTH) * px
+        ground_y = h - C.GROUND_DEPTH * px
+        blast = C.BLACK_BLAST["radius"]
+        return f"""
+Physics for aiming (the physics_hints option):
+- 1 unit = {_g(px)} pixels; gravity is {_g(C.GRAVITY)} units/s^2 downwards; there is no air resistance.
+- The bird leaves from pixel ({sling_x:.0f}, {sling_y:.0f}) of the picture (x to the right, y down from the
+  top edge) at P x {_g(C.MAX_LAUNCH_SPEED)} units/s; the ground's surface is at pixel row {ground_y:.0f}.
+- The yellow bird's dash adds {_g(C.YELLOW_BOOST)} units/s; the blue bird's two extra birds fly
+  {_g(C.BLUE_SPLIT_DEGREES)} degrees above and below the first; the black bird's blast reaches
+  {_g(blast)} units ({_g(blast * px)} pixels).
+"""
 
     def prediction_hint(self) -> str:
         return ("where the bird will fly and what it will hit first, what will break, fall or explode, "

@@ -199,6 +199,10 @@ def render(level: Level, poses: Sequence[Pose], *, waiting: Sequence[str] = (), 
                      for u, v in corners])
         cv2.fillPoly(img, [poly], PLATFORM, cv2.LINE_AA, _SHIFT)
         cv2.polylines(img, [poly], True, PLATFORM_EDGE, 2, cv2.LINE_AA, _SHIFT)
+    for t in level.terrain:
+        poly = _pts(t.points)
+        cv2.fillPoly(img, [poly], PLATFORM, cv2.LINE_AA, _SHIFT)
+        cv2.polylines(img, [poly], True, PLATFORM_EDGE, 2, cv2.LINE_AA, _SHIFT)
     _draw_trails(img, trails)
     _sling_arm(img, 0.18, SLING_DARK)  # back arm
     queue = waiting[1:]  # next bird nearest the slingshot; a long queue closes up to stay in view

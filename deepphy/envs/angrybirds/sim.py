@@ -1,24 +1,36 @@
 """The Angry Birds world in pymunk: structures, pigs, TNT, birds, damage, explosions.
 
-A `World` is built from a level's data in a fixed order and settled (SETTLE_TIME, nobody
-takes damage), so every attempt starts from the same state, bit for bit. `shoot` launches
-the next bird and simulates until the scene is at rest (or SHOT_MAX_TIME).
+A level's start state is its data built in a fixed order and settled for SETTLE_TIME with
+nobody taking damage (`settled_poses`, computed once per process and level content); every
+`World` is then built fresh at those poses, at rest, so every attempt starts from the same
+state, bit for bit, without paying for the settling again. `shoot` launches the next bird
+and simulates until the shot is over (below).
 
 Damage comes from the physics, never from scripts: each new contact (the collision handler's
 `begin`) is looked up after the step that solved it, its impulse J read from the arbiter
 (what a post-solve handler sees on a first contact, without a Python call for every
 contact of every step), and each body with hit points takes  J x IMPACT_DAMAGE x factor -
-defense  (constants.py). Resting contacts are not
-first contacts, so a standing structure takes no damage however heavy it is; what moves
-and hits does: birds, falling blocks, toppling towers, bodies thrown by an explosion.
+defense  (constants.py). Resting contacts are not first contacts, so a standing structure
+takes no damage however heavy it is; what moves and hits does: birds, falling blocks,
+toppling towers, bodies thrown by an explosion. A body pinned against the ground takes the
+whole impulse of what lands on it (the solver stops both), so heavy blocks crush.
 Destroyed bodies leave the space after the step; a destroyed TNT crate explodes.
 
+Round bodies (birds, pigs, logs) have rolling resistance (pymunk has none: a circle would
+roll on forever): a motor to the static body holds their spin with a bounded torque
+(ROLL_RESISTANCE); a bird touching anything also loses speed (BIRD_SKID). Other bodies
+have a small spin brake of the same kind (SPIN_BRAKE, angular drag).
+
 Birds do not collide with each other (one shape-filter group), so the blue bird's three
-can split side by side. Spent birds are removed when the shot ends.
+can split side by side. A spent bird (one that has hit something) leaves the world once it
+lies still, or SPENT_BIRD_TIME after its first hit at the latest; a shot ends when no bird
+of it is left and every other body has been at rest for REST_HOLD (or at SHOT_MAX_TIME,
+a safety cap). So the settled scene is the state the next shot starts from.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -29,9 +41,8 @@ from deepphy.envs.angrybirds.levels import Level
 
 BIRD_GROUP = 1
 # Housekeeping that need not run every step (bodies move at most ~0.2 u per step):
-ROLL_EVERY = 4  # steps between applications of the rolling resistance
-CHECK_EVERY = 6  # steps between checks for rest and for bodies leaving the world
-_ROLL_KEEP = math.exp(-C.ROLLING_DAMPING * C.DT * ROLL_EVERY)
+SKID_EVERY = 4  # steps between applications of a bird's skid
+CHECK_EVERY = 6  # steps between checks for rest, spent birds and bodies leaving the world
 
 
 @dataclass(eq=False)
@@ -53,6 +64,10 @@ class Thing:
     radius: float = 0.0
     alive: bool = True
     hit: bool = False  # birds: touched something since launch
+    hit_time: float = 0.0  # birds: shot time of the first hit
+    left_world: bool = False  # gone beyond the edges of the world
+    still: int = 0  # birds: steps lying still so far (counted at the checks)
+    brake: pymunk.Constraint | None = None  # rolling resistance or spin brake (see World._new)
 
     @property
     def damage(self) -> float:
@@ -89,6 +104,8 @@ class ShotResult:
     ability: str = ""  # what the bird's ability did, in words
     first_hit: str | None = None  # what the bird hit first
     first_hit_time: float | None = None
+    birds_hit: int = 0  # birds of the shot (three for a split blue bird) that hit something
+    birds_left_world: int = 0  # birds of the shot that flew out of the world
     sim_time: float = 0.0
     at_rest: bool = True  # False: stopped at SHOT_MAX_TIME
     trails: list[list[tuple[float, float]]] = field(default_factory=list)
@@ -99,8 +116,23 @@ class ShotResult:
         return sum(self.blocks_destroyed.values())
 
 
+@functools.lru_cache(maxsize=256)
+def _settled(content: str) -> tuple[tuple[float, float, float], ...]:
+    world = World(Level.model_validate_json(content), settle=False)
+    for _ in range(round(C.SETTLE_TIME / C.DT)):
+        world._step()
+    return tuple((t.body.position.x, t.body.position.y, t.body.angle) for t in world.things)
+
+
+def settled_poses(level: Level) -> tuple[tuple[float, float, float], ...]:
+    """(x, y, angle in radians) of every block, pig and crate once the level has settled."""
+    return _settled(level.model_dump_json(exclude={"oracle", "stars"}))  # a new plan does not change it
+
+
 class World:
-    def __init__(self, level: Level) -> None:
+    def __init__(self, level: Level, *, settle: bool = True) -> None:
+        """The level at its start state; `settle=False`: at the positions its data gives
+        (what the start state is computed from)."""
         self.level = level
         space = pymunk.Space()
         space.gravity = (0.0, -C.GRAVITY)
@@ -115,7 +147,7 @@ class World:
         self._shot_time = 0.0
         self._frame_blasts: list[tuple[float, float, float]] = []
         self._new_contacts: list[tuple[pymunk.Shape, pymunk.Shape]] = []
-        self._round: list[Thing] = []  # bodies that roll (rolling resistance)
+        self._birds_flying: list[Thing] = []  # birds of the current shot
         self._steps = 0
         self.pigs_killed = 0
         self.blocks_destroyed = 0
@@ -123,21 +155,20 @@ class World:
         self._add_ground()
         for p in level.platforms:
             self._add_platform(p.x, p.y, p.w, p.h, p.angle)
+        for t in level.terrain:
+            self._add_terrain(t.points)
+        as_given = [(b.x, b.y, math.radians(b.angle)) for b in level.blocks] + \
+            [(p.x, p.y, 0.0) for p in level.pigs] + [(t.x, t.y, 0.0) for t in level.tnt]
+        poses = iter(settled_poses(level) if settle else as_given)
         for b in level.blocks:
-            self._add_block(b.shape, b.material, b.x, b.y, b.angle)
+            self._add_block(b.shape, b.material, *next(poses))
         for p in level.pigs:
-            self._add_pig(p.size, p.x, p.y)
+            self._add_pig(p.size, *next(poses))
         for t in level.tnt:
-            self._add_tnt(t.x, t.y)
+            self._add_tnt(*next(poses))
         handler = space.add_default_collision_handler()
         handler.begin = self._begin
-
-        for _ in range(round(C.SETTLE_TIME / C.DT)):
-            self._step()
-        for thing in self.things:
-            thing.body.velocity = (0.0, 0.0)
-            thing.body.angular_velocity = 0.0
-        self._damage_on = True
+        self._damage_on = settle
 
     # -- building ------------------------------------------------------------------------
 
@@ -149,13 +180,19 @@ class World:
         )
         ground.friction, ground.elasticity = C.GROUND_FRICTION, C.GROUND_ELASTICITY
         self.space.add(ground)
+        self._ground = ground
 
     def _add_platform(self, x: float, y: float, w: float, h: float, angle: float) -> None:
         body = pymunk.Body(body_type=pymunk.Body.STATIC)
         body.position, body.angle = (x, y), math.radians(angle)
         shape = pymunk.Poly.create_box(body, (w, h))
-        shape.friction, shape.elasticity = C.PLATFORM_MATERIAL["friction"], C.PLATFORM_MATERIAL["elasticity"]
+        shape.friction, shape.elasticity = C.TERRAIN_MATERIAL["friction"], C.TERRAIN_MATERIAL["elasticity"]
         self.space.add(body, shape)
+
+    def _add_terrain(self, points: list[tuple[float, float]]) -> None:
+        shape = pymunk.Poly(self.space.static_body, points)
+        shape.friction, shape.elasticity = C.TERRAIN_MATERIAL["friction"], C.TERRAIN_MATERIAL["elasticity"]
+        self.space.add(shape)
 
     def _new(self, kind: str, name: str, body: pymunk.Body, shapes: list[pymunk.Shape], **kw) -> Thing:
         thing = Thing(index=len(self.things), kind=kind, name=name, body=body, shapes=shapes, **kw)
@@ -163,22 +200,38 @@ class World:
         for s in shapes:
             self._by_shape[s] = thing
         self.things.append(thing)
+        # Every body has a motor to the static body that holds its spin with a bounded torque.
+        # Round bodies: rolling resistance, the torque that slows a disk rolling on flat
+        # ground by `a` (a m r (1 + I / (m r^2)) = 1.5 a m r), solved with the contacts: a pig
+        # stays put on a gentle slope, a log rolls down a steep one. Other bodies: a small
+        # spin brake (angular drag), so a plank rocking on a pig comes to rest.
         if thing.radius:
-            self._round.append(thing)
+            key = "bird" if kind == "bird" else "pig" if kind == "pig" else "log"
+            torque = 1.5 * C.ROLL_RESISTANCE[key] * body.mass * thing.radius
+        else:
+            reach = max(math.hypot(x, y) for poly in thing.polygons for x, y in poly)
+            torque = C.SPIN_BRAKE * body.mass * C.GRAVITY * reach
+        brake = pymunk.SimpleMotor(body, self.space.static_body, 0.0)
+        brake.max_force = torque
+        self.space.add(brake)
+        thing.brake = brake
+        if kind == "bird":
+            self._birds_flying.append(thing)
         return thing
 
     def _add_block(self, shape: str, material: str, x: float, y: float, angle: float) -> Thing:
+        """A block at (x, y), turned `angle` radians."""
         m = C.MATERIALS[material]
         w, h = C.BLOCK_SIZES[shape]
         body = pymunk.Body()
-        body.position, body.angle = (x, y), math.radians(angle)
+        body.position, body.angle = (x, y), angle
         polygons: list[list[tuple[float, float]]] = []
         radius = 0.0
         if shape in C.ROUND_SHAPES:
             radius = w / 2
             shapes: list[pymunk.Shape] = [pymunk.Circle(body, radius)]
         elif shape == "square_hole":
-            t = C.SQUARE_HOLE_WALL
+            t = C.HOLLOW_WALL
             walls = [  # bottom, top, left, right
                 (-w / 2, -h / 2, w / 2, -h / 2 + t), (-w / 2, h / 2 - t, w / 2, h / 2),
                 (-w / 2, -h / 2 + t, -w / 2 + t, h / 2 - t), (w / 2 - t, -h / 2 + t, w / 2, h / 2 - t),
@@ -188,6 +241,15 @@ class World:
         elif shape == "triangle":
             polygons = [[(-w / 2, -h / 2), (w / 2, -h / 2), (-w / 2, h / 2)]]
             shapes = [pymunk.Poly(body, polygons[0])]
+        elif shape == "triangle_hole":  # bottom, left and slanted walls (w == h)
+            a, t = w / 2, C.HOLLOW_WALL
+            d = t * math.sqrt(2.0)  # the slanted wall's inner edge, measured along x
+            polygons = [
+                [(-a, -a), (a, -a), (a - t, -a + t), (-a, -a + t)],
+                [(-a, -a + t), (-a + t, -a + t), (-a + t, a - t), (-a, a)],
+                [(a - t, -a + t), (-a + t, a - t), (-a + t, a - t - d), (a - t - d, -a + t)],
+            ]
+            shapes = [pymunk.Poly(body, p) for p in polygons]
         else:
             polygons = [[(-w / 2, -h / 2), (w / 2, -h / 2), (w / 2, h / 2), (-w / 2, h / 2)]]
             shapes = [pymunk.Poly(body, polygons[0])]
@@ -197,19 +259,19 @@ class World:
         return self._new("block", f"{material} {shape.replace('_', ' ')}", body, shapes, hp=hp, max_hp=hp,
                          defense=m["defense"], material=material, polygons=polygons, radius=radius)
 
-    def _add_pig(self, size: str, x: float, y: float) -> Thing:
+    def _add_pig(self, size: str, x: float, y: float, angle: float = 0.0) -> Thing:
         r = C.PIG_RADIUS[size]
         body = pymunk.Body()
-        body.position = (x, y)
+        body.position, body.angle = (x, y), angle
         shape = pymunk.Circle(body, r)
         shape.density, shape.friction, shape.elasticity = C.PIG_DENSITY, C.PIG_FRICTION, C.PIG_ELASTICITY
         hp = C.PIG_HIT_POINTS[size]
         return self._new("pig", f"{size} pig", body, [shape], hp=hp, max_hp=hp, defense=C.PIG_DEFENSE, radius=r)
 
-    def _add_tnt(self, x: float, y: float) -> Thing:
+    def _add_tnt(self, x: float, y: float, angle: float = 0.0) -> Thing:
         s = C.TNT_SIZE
         body = pymunk.Body()
-        body.position = (x, y)
+        body.position, body.angle = (x, y), angle
         poly = [(-s / 2, -s / 2), (s / 2, -s / 2), (s / 2, s / 2), (-s / 2, s / 2)]
         shape = pymunk.Poly(body, poly)
         shape.density, shape.friction, shape.elasticity = C.TNT_DENSITY, 0.8, 0.1
@@ -266,11 +328,18 @@ class World:
             contacts, self._new_contacts = self._new_contacts, []
             for s1, s2 in contacts:
                 self._hit(s1, s2)
-        if self._steps % ROLL_EVERY == 0:  # pymunk has no rolling resistance: pigs and logs would roll forever
-            for thing in self._round:
-                if thing.alive:
-                    thing.body.angular_velocity *= _ROLL_KEEP
+        if self._steps % SKID_EVERY == 0 and self._birds_flying:
+            self._skid()
         self._after_step()
+
+    def _skid(self) -> None:
+        """A bird touching something loses speed (it digs in; it does not skid like a puck)."""
+        cut = C.BIRD_SKID * C.DT * SKID_EVERY
+        for bird in self._birds_flying:
+            body = bird.body
+            speed = body.velocity.length
+            if bird.alive and speed > 0.0 and _touching(body):
+                body.velocity = body.velocity * (max(speed - cut, 0.0) / speed)
 
     def _begin(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data) -> bool:
         if self._damage_on:
@@ -280,10 +349,15 @@ class World:
         return True
 
     def _hit(self, s1: pymunk.Shape, s2: pymunk.Shape) -> None:
-        """Damage from a contact that began in the last step, by the impulse that resolved it."""
+        """A contact that began in the last step: a bird's first hit, and damage by the
+        impulse that resolved it."""
         a, b = self._by_shape.get(s1), self._by_shape.get(s2)
         if (a is not None and not a.alive) or (b is not None and not b.alive):
             return
+        bird = a if a is not None and a.kind == "bird" else b if b is not None and b.kind == "bird" else None
+        if bird is not None and not bird.hit:
+            other, shape = (b, s2) if bird is a else (a, s1)
+            self._first_hit(bird, other.name if other is not None else self._fixed_name(shape))
         body = (a or b).body
         found: list[float] = []
 
@@ -296,7 +370,6 @@ class World:
         if not found:
             return  # touched and parted within the step
         impulse = found[0]
-        bird = a if a is not None and a.kind == "bird" else b if b is not None and b.kind == "bird" else None
         for target, other in ((a, b), (b, a)):
             if target is None or target.kind == "bird" or not target.alive:
                 continue
@@ -305,15 +378,19 @@ class World:
             else:
                 factor = C.NON_BIRD_FACTOR
             self._damage(target, impulse * C.IMPACT_DAMAGE * factor - target.defense)
-        if bird is not None and not bird.hit:
-            bird.hit = True
-            other = b if bird is a else a
-            shot = self._shot
-            if shot is not None and shot.first_hit is None:
-                shot.first_hit = other.name if other is not None else "the ground"
-                shot.first_hit_time = self._shot_time
-            if bird.bird == "black" and bird.alive:
-                self._explode_bird(bird)
+
+    def _first_hit(self, bird: Thing, what: str) -> None:
+        bird.hit = True
+        bird.hit_time = self._shot_time
+        shot = self._shot
+        if shot is not None and shot.first_hit is None:
+            shot.first_hit = what
+            shot.first_hit_time = self._shot_time
+        if bird.bird == "black" and bird.alive:
+            self._explode_bird(bird)
+
+    def _fixed_name(self, shape: pymunk.Shape) -> str:
+        return "the ground" if shape is self._ground else "a fixed platform"
 
     def _damage(self, thing: Thing, amount: float) -> None:
         if amount <= 0 or not thing.alive or thing in self._pending:
@@ -330,7 +407,7 @@ class World:
 
     def _remove(self, thing: Thing) -> None:
         thing.alive = False
-        self.space.remove(thing.body, *thing.shapes)
+        self.space.remove(thing.brake, thing.body, *thing.shapes)
 
     def _after_step(self) -> None:
         """Remove what broke during the step; set off explosions (which may break more)."""
@@ -381,8 +458,9 @@ class World:
 
     def shoot(self, bird: str, angle: float, power: float, *, record: bool = False,
               snapshot_every: float = 0.1) -> ShotResult:
-        """Launch `bird` from the slingshot and simulate until the scene is at rest (or
-        SHOT_MAX_TIME). `record`: keep a snapshot every `snapshot_every` s for pictures."""
+        """Launch `bird` from the slingshot and simulate until the shot is over: every bird
+        of it gone and the scene at rest (or SHOT_MAX_TIME). `record`: keep a snapshot every
+        `snapshot_every` s for pictures."""
         shot = ShotResult(bird=bird)
         self._shot, self._shot_time = shot, 0.0
         first = self._add_bird(bird, (C.SLING_X, C.SLING_Y), C.launch_velocity(angle, power))
@@ -395,6 +473,7 @@ class World:
         snap_every = max(1, round(snapshot_every / C.DT))
         min_steps = round(C.SHOT_MIN_TIME / C.DT)
         hold_steps = round(C.REST_HOLD / C.DT)
+        bird_hold_steps = round(C.BIRD_REST_HOLD / C.DT)
         still = 0
         if record:
             shot.snapshots.append(Snapshot(0.0, self.poses(), [list(t) for t in trails]))
@@ -419,11 +498,7 @@ class World:
                 self._after_step()
                 shot.ability = "the black bird exploded in the air (its fuse ran out)"
             if steps % CHECK_EVERY == 0:
-                for thing in self.things:
-                    if thing.alive and self._out_of_world(thing):
-                        self._remove(thing)
-                        if thing.kind != "bird":  # a pig pushed out of the picture dies
-                            self._count_destroyed(thing)
+                self._housekeeping(birds, bird_hold_steps)
             if steps % trail_every == 0:
                 for b, trail in zip(birds, trails):
                     if b.alive and not b.hit:
@@ -432,20 +507,43 @@ class World:
                 shot.snapshots.append(Snapshot(t, self.poses(), [list(tr) for tr in trails], self._frame_blasts))
             self._frame_blasts = []
             if steps >= min_steps and steps % CHECK_EVERY == 0:
-                still = still + CHECK_EVERY if self._at_rest() else 0
+                gone = not any(b.alive for b in birds)
+                still = still + CHECK_EVERY if gone and self._at_rest() else 0
                 if still >= hold_steps:
                     break
         else:
             shot.at_rest = False
         if bird == "black" and not shot.ability:
             shot.ability = "the black bird exploded on impact" if first.hit else ""
-        for b in birds:
+        for b in birds:  # only at the safety cap
             if b.alive:
                 self._remove(b)
+        shot.birds_hit = sum(b.hit for b in birds)
+        shot.birds_left_world = sum(b.left_world for b in birds)
         shot.sim_time = steps * C.DT
         shot.trails = trails
+        if record and shot.snapshots[-1].t != shot.sim_time:
+            shot.snapshots.append(Snapshot(shot.sim_time, self.poses(), [list(tr) for tr in trails]))
         self._shot = None
+        self._birds_flying = []
         return shot
+
+    def _housekeeping(self, birds: list[Thing], bird_hold_steps: int) -> None:
+        """Remove what left the world (a pig pushed out of the picture dies) and spent birds."""
+        for thing in self.things:
+            if thing.alive and self._out_of_world(thing):
+                thing.left_world = True
+                self._remove(thing)
+                if thing.kind != "bird":
+                    self._count_destroyed(thing)
+        for b in birds:
+            if not (b.alive and b.hit):
+                continue
+            body = b.body
+            lying = body.velocity.length < C.REST_SPEED and abs(body.angular_velocity) < C.REST_SPIN and _touching(body)
+            b.still = b.still + CHECK_EVERY if lying else 0
+            if b.still >= bird_hold_steps or self._shot_time - b.hit_time >= C.SPENT_BIRD_TIME - 1e-9:
+                self._remove(b)
 
     def advance(self, seconds: float) -> None:
         """Simulate without launching anything (damage on): for tests and tools."""
@@ -453,8 +551,13 @@ class World:
             self._step()
 
     def add_block(self, shape: str, material: str, x: float, y: float, angle: float = 0.0) -> Thing:
-        """Add a block to a built world (for tests and tools; levels list their blocks)."""
-        return self._add_block(shape, material, x, y, angle)
+        """Add a block (turned `angle` degrees) to a built world (for tests and tools; levels
+        list their blocks)."""
+        return self._add_block(shape, material, x, y, math.radians(angle))
+
+    def add_pig(self, size: str, x: float, y: float) -> Thing:
+        """Add a pig to a built world (for tests and tools; levels list their pigs)."""
+        return self._add_pig(size, x, y)
 
     def _dash(self, bird: Thing) -> None:
         v = bird.body.velocity
@@ -476,9 +579,25 @@ class World:
         return x < -m or x > C.WORLD_W + m or y < C.GROUND_Y - m
 
     def _at_rest(self) -> bool:
-        for t in self.things:
-            if t.alive:
-                b = t.body
-                if b.velocity.length > C.REST_SPEED or abs(b.angular_velocity) > C.REST_SPIN:
-                    return False
-        return True
+        return not any(_moving(t.body) for t in self.things if t.alive)
+
+    def moving(self) -> list[Thing]:
+        """The live bodies that still move (for tests and tools)."""
+        return [t for t in self.things if t.alive and _moving(t.body)]
+
+
+def _moving(body: pymunk.Body) -> bool:
+    """Faster than the rest thresholds."""
+    return body.velocity.length > C.REST_SPEED or abs(body.angular_velocity) > C.REST_SPIN
+
+
+def _touching(body: pymunk.Body) -> bool:
+    """Whether the body has a contact with anything this step."""
+    touching = False
+
+    def seen(arbiter: pymunk.Arbiter) -> None:
+        nonlocal touching
+        touching = True
+
+    body.each_arbiter(seen)
+    return touching

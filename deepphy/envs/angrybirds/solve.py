@@ -1,26 +1,26 @@
-"""The Angry Birds oracle: prove every level winnable with its birds and find its best score.
+"""The Angry Birds oracle on the command line: prove every level winnable, search for plans,
+and calibrate the levels (oracle.py has the methods and their definitions).
 
     deepphy solve --env angrybirds report [--levels s1_l01,...] [--json FILE]
-        Replay every level's stored winning plan and print the solvability report (per
-        level: birds, pigs, shots the plan needs, its score, the star thresholds, the
-        stars the replay earns). Fails (exit 1) if a stored plan no longer wins with its
-        stored score. Takes seconds.
+        Replay every level's stored plan and print the solvability report (per level:
+        birds, pigs, the shots the plan needs, its score, the star thresholds, the stars the
+        replay earns, its stored robustness). Fails (exit 1) if a stored plan no longer
+        wins with its stored score. Seconds.
 
-    deepphy solve --env angrybirds search [--levels ...] [--jobs 2] [--dry-run]
-        Search each level again and store the best winning plan found, its score and the
-        star thresholds derived from it in the level file (levels.star_thresholds).
+    deepphy solve --env angrybirds search [--levels ...] [--coarse] [--dry-run]
+        Search each level again (oracle.Search) and store the plan found, what it measured
+        and the star thresholds derived from it (levels.star_thresholds) in the level file.
+        --coarse: depth 1 on the coarse grid too (quick, for designing; not the evidence
+        the stored figures claim). About a minute per level that one bird wins; several
+        for levels that need more.
 
-The search, per level (deterministic: fixed grids, ties broken by grid order):
-- Beam search over shot sequences, one bird per depth. At each depth every state of the
-  beam is extended by every shot of a coarse grid (GRID_ANGLES x GRID_POWERS); then the
-  best extensions are refined by local steps in angle and power (REFINE_STEPS), a step
-  kept when it improves the outcome. A state is a plan; it is simulated by rebuilding
-  the level and replaying the plan (pymunk spaces are never copied).
-- Outcomes are ranked by (won, score, pigs killed, -pig hit points left, blocks destroyed).
-- The first depth at which any plan wins ends the search: a win with fewer birds beats any
-  win with more (SCORE_UNUSED_BIRD outweighs what extra destruction can earn); the winners
-  of that depth are refined for score. Otherwise the best BEAM distinct states (by which
-  pigs are left) go on to the next depth.
+    deepphy solve --env angrybirds calibrate [--levels ...] [--episodes 100] [--seed 0] [--json FILE]
+        Per level: the reference random baseline over EPISODES episodes drawn exactly as
+        `deepphy run --model mock --seed SEED` draws runs 0..EPISODES-1 (single-shot win
+        rate: the first shot wins; episode win rate: the birds win before they run out),
+        the oracle's fewest birds and its evidence, the stored plan's robustness measured
+        again, the stars of the oracle's plan and of the random wins, and whether one-shot
+        wins all earn 3 stars. Then the overall figures against the targets. Minutes.
 
 `main(argv)` is the entry point (wired to `deepphy solve --env angrybirds`).
 """
@@ -29,144 +29,75 @@ from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 
 from deepphy.envs.angrybirds import constants as C
 from deepphy.envs.angrybirds.levels import Level, Oracle, Shot, level_ids, load_level, save_level, star_thresholds
-from deepphy.envs.angrybirds.sim import World
+from deepphy.envs.angrybirds.oracle import Search, SearchResult, reference_episode, robustness, simulate
 
-GRID_ANGLES = tuple(float(a) for a in range(0, 86, 5))  # 18 angles
-GRID_POWERS = (0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)  # 7 powers
-BEAM = 4  # states kept per depth
-REFINE_TOP = 6  # extensions refined per depth
-REFINE_STEPS = ((2.5, 0.05), (1.0, 0.02), (0.4, 0.01))  # (degrees, power) per refinement round
-
-
-@dataclass(frozen=True)
-class Outcome:
-    plan: tuple[tuple[float, float], ...]
-    won: bool
-    score: int
-    pigs_killed: int
-    blocks: int
-    pig_hp: float  # hit-point fraction the surviving pigs have left, summed
-    alive: tuple[int, ...]  # which pigs survive (to keep the beam diverse)
-
-    @property
-    def rank(self) -> tuple:
-        return (self.won, self.score, self.pigs_killed, -self.pig_hp, self.blocks)
+# Targets of issue 19 (the calibration report checks them).
+TARGET_EPISODE_WINS = (0.10, 0.25)  # share of levels the reference baseline wins, overall
+TARGET_MAX_SINGLE = 0.40  # no level above this share of random single-shot wins
+TARGET_NEED_TWO, TARGET_NEED_THREE = 10, 4  # levels whose oracle needs 2+ / 3+ birds
+TARGET_ROBUSTNESS = 0.20  # every stored plan at least this robust
 
 
-def simulate(level: Level, plan) -> Outcome:
-    """Replay `plan` ((angle, power) per bird, in order) on a freshly built level."""
-    world = World(level)
-    shots = 0
-    for angle, power in plan:
-        world.shoot(level.birds[shots], angle, power)
-        shots += 1
-        if world.pigs_left == 0:
-            break
-    pigs = world.alive("pig")
-    return Outcome(
-        plan=tuple(plan[:shots]),
-        won=not pigs,
-        score=world.score(shots),
-        pigs_killed=world.pigs_killed,
-        blocks=world.blocks_destroyed,
-        pig_hp=sum(p.hp / p.max_hp for p in pigs),
-        alive=tuple(p.index for p in pigs),
-    )
+def _letters(level: Level) -> str:
+    return "".join(next(k for k, v in C.BIRD_LETTERS.items() if v == b) for b in level.birds)
 
 
-def _clip(angle: float, power: float) -> tuple[float, float]:
-    return (round(min(max(angle, C.ANGLE_MIN), C.ANGLE_MAX), 2),
-            round(min(max(power, 0.05), C.POWER_MAX), 2))
+# -- search ---------------------------------------------------------------------------------------
 
 
-class Search:
-    def __init__(self, level: Level) -> None:
-        self.level = level
-        self.sims = 0
-        self._seen: dict[tuple, Outcome] = {}
-
-    def run(self, plan) -> Outcome:
-        key = tuple(plan)
-        if key not in self._seen:
-            self._seen[key] = simulate(self.level, list(plan))
-            self.sims += 1
-        return self._seen[key]
-
-    def refine(self, start: Outcome) -> Outcome:
-        """Local steps on the last shot of `start`'s plan, kept while they improve it."""
-        best = start
-        prefix = best.plan[:-1]
-        for da, dp in REFINE_STEPS:
-            improved = True
-            while improved:
-                improved = False
-                a, p = best.plan[-1]
-                for sa, sp in ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)):
-                    cand = self.run(prefix + (_clip(a + sa * da, p + sp * dp),))
-                    if cand.rank > best.rank and len(cand.plan) == len(best.plan):
-                        best, improved = cand, True
-        return best
-
-    def solve(self) -> Outcome | None:
-        frontier: list[Outcome] = [simulate(self.level, [])]
-        grid = [(a, p) for a in GRID_ANGLES for p in GRID_POWERS]
-        for depth in range(1, len(self.level.birds) + 1):
-            children = [self.run(node.plan + (shot,)) for node in frontier for shot in grid]
-            children.sort(key=lambda o: o.rank, reverse=True)  # stable: grid order breaks ties
-            refined = [self.refine(c) for c in _distinct(children, REFINE_TOP)]
-            pool = sorted(refined + children, key=lambda o: o.rank, reverse=True)
-            if pool[0].won:
-                return pool[0]
-            frontier = _distinct(pool, BEAM)
-        return None
-
-
-def _distinct(outcomes: list[Outcome], n: int) -> list[Outcome]:
-    """The first `n` outcomes that leave different sets of pigs (or differ in blocks broken)."""
-    out, seen = [], set()
-    for o in outcomes:
-        key = (o.alive, o.blocks)
-        if key not in seen:
-            seen.add(key)
-            out.append(o)
-            if len(out) == n:
-                break
-    return out
-
-
-def search_level(level_id: str) -> tuple[str, Outcome | None, int, float]:
-    t0 = time.process_time()
-    search = Search(load_level(level_id))
-    best = search.solve()
-    return level_id, best, search.sims, time.process_time() - t0
-
-
-def store(level: Level, best: Outcome, sims: int) -> Level:
+def store(level: Level, result: SearchResult) -> Level:
+    best = result.best
     oracle = Oracle(plan=[Shot(angle=a, power=p) for a, p in best.plan], score=best.score,
-                    blocks_destroyed=best.blocks, searched=sims)
-    updated = level.model_copy(update={"oracle": oracle, "stars": star_thresholds(level, best.score)})
+                    blocks_destroyed=best.blocks, robustness=result.robustness, searched=result.searched,
+                    shorter_tried=result.shorter_tried)
+    updated = level.model_copy(update={"oracle": oracle,
+                                       "stars": star_thresholds(level, len(best.plan), best.blocks)})
     Level.model_validate(updated.model_dump())  # still a valid level
     save_level(updated)
     return updated
 
 
-# -- the report -----------------------------------------------------------------------------
+def run_search(ids: list[str], coarse: bool, dry_run: bool) -> int:
+    failed = []
+    for level_id in ids:
+        t0 = time.process_time()
+        level = load_level(level_id)
+        search = Search(level, log=lambda text: print(f"  {level_id} {text}", flush=True))
+        result = search.solve(fine=not coarse)
+        cpu = time.process_time() - t0
+        if result.best is None:
+            failed.append(level_id)
+            print(f"{level_id}: NO WIN FOUND ({result.searched} plans simulated, {cpu:.0f} s CPU)", flush=True)
+            continue
+        best = result.best
+        print(f"{level_id}: wins with {len(best.plan)} bird(s): {_plan_text(best.plan)}; score {best.score}, "
+              f"{best.blocks} blocks, robustness {result.robustness:.2f}; {result.shorter_tried} shorter plans "
+              f"without a win; {result.searched} plans simulated, {cpu:.0f} s CPU", flush=True)
+        if not dry_run:
+            store(level, result)
+    return 1 if failed else 0
+
+
+def _plan_text(plan) -> str:
+    return " ".join(f"({a:g}, {p:g})" for a, p in plan)
+
+
+# -- report: replay the stored plans ----------------------------------------------------------------
 
 
 def report_rows(ids: list[str]) -> list[dict]:
     rows = []
     for level_id in ids:
         level = load_level(level_id)
-        row = {"level": level_id, "title": level.title, "birds": "".join(_letter(b) for b in level.birds),
-               "pigs": len(level.pigs), "blocks": len(level.blocks), "tnt": len(level.tnt)}
+        row = {"level": level_id, "birds": _letters(level), "pigs": len(level.pigs), "blocks": len(level.blocks),
+               "tnt": len(level.tnt), "idea": level.idea}
         if level.oracle is None or level.stars is None:
             rows.append({**row, "winnable": False, "problem": "no stored plan"})
             continue
@@ -177,31 +108,120 @@ def report_rows(ids: list[str]) -> list[dict]:
             problem = "the stored plan no longer wins"
         elif replay.score != level.oracle.score:
             problem = f"the stored plan scores {replay.score}, not {level.oracle.score}"
-        rows.append({**row, "winnable": replay.won, "shots": len(replay.plan),
-                     "plan": [f"({a:g}, {p:g})" for a, p in replay.plan], "best_score": replay.score,
-                     "least_win": level.least_win_score, "two_stars": level.stars.two,
-                     "three_stars": level.stars.three, "stars": stars, "blocks_destroyed": replay.blocks,
-                     "searched": level.oracle.searched, "problem": problem})
+        rows.append({**row, "winnable": replay.won, "shots": len(replay.plan), "plan": _plan_text(replay.plan),
+                     "score": replay.score, "two_stars": level.stars.two, "three_stars": level.stars.three,
+                     "stars": stars, "blocks_destroyed": replay.blocks, "robustness": level.oracle.robustness,
+                     "problem": problem})
     return rows
 
 
-def _letter(bird: str) -> str:
-    return next(k for k, v in C.BIRD_LETTERS.items() if v == bird)
-
-
 def print_report(rows: list[dict]) -> None:
-    print(f"{'level':7} {'birds':9} {'pigs':>4} {'blk':>4} {'tnt':>3} {'shots':>5} {'best':>6} "
-          f"{'2*':>6} {'3*':>6} {'stars':>5}  plan")
+    print(f"{'level':7} {'birds':9} {'pigs':>4} {'blk':>4} {'tnt':>3} {'shots':>5} {'score':>6} "
+          f"{'2*':>6} {'3*':>6} {'stars':>5} {'robust':>6}  plan")
     for r in rows:
         if "shots" not in r:
             print(f"{r['level']:7} {r['birds']:9} {r['pigs']:4d} {r['blocks']:4d} {r['tnt']:3d}  {r['problem']}")
             continue
         note = f"  PROBLEM: {r['problem']}" if r["problem"] else ""
         print(f"{r['level']:7} {r['birds']:9} {r['pigs']:4d} {r['blocks']:4d} {r['tnt']:3d} {r['shots']:5d} "
-              f"{r['best_score']:6d} {r['two_stars']:6d} {r['three_stars']:6d} {r['stars']:5d}  "
-              f"{' '.join(r['plan'])}{note}")
+              f"{r['score']:6d} {r['two_stars']:6d} {r['three_stars']:6d} {r['stars']:5d} {r['robustness']:6.2f}  "
+              f"{r['plan']}{note}")
     ok = sum(1 for r in rows if r.get("winnable") and not r.get("problem"))
     print(f"{ok}/{len(rows)} levels proven winnable by their stored plan")
+
+
+# -- calibrate ------------------------------------------------------------------------------------
+
+
+def calibrate_level(level_id: str, episodes: int, seed: int) -> dict:
+    level = load_level(level_id)
+    if level.oracle is None or level.stars is None:
+        raise SystemExit(f"{level_id} has no stored plan: run `deepphy solve --env angrybirds search` first")
+    eps = [reference_episode(level, seed, run) for run in range(episodes)]
+    wins = [e for e in eps if e.won]
+    plan = tuple((s.angle, s.power) for s in level.oracle.plan)
+    cache: dict = {}
+    robust = robustness(level, plan, cache)
+    replay = simulate(level, plan)
+    # One-shot wins seen (random first shots, nudges of a one-shot plan): do they all earn 3 stars?
+    one_shot = [level.stars.of(True, e.score) for e in wins if e.shots == 1]
+    if len(plan) == 1:
+        one_shot += [level.stars.of(True, o.score) for o in cache.values() if o.won and len(o.plan) == 1]
+    return {
+        "level": level_id, "birds": _letters(level), "pigs": len(level.pigs), "idea": level.idea,
+        "episodes": episodes, "seed": seed,
+        "random_single": sum(e.won and e.shots == 1 for e in eps) / episodes,
+        "random_episode": len(wins) / episodes,
+        "random_episode_runs": [int(e.won) for e in eps],
+        "random_stars": statistics.mean(e.stars for e in wins) if wins else None,
+        "random_three_stars": sum(e.stars == 3 for e in wins),
+        "random_wins": len(wins),
+        "capped_shots": sum(e.capped for e in eps),
+        "oracle_birds": len(plan), "oracle_evidence": level.oracle.shorter_tried,
+        "oracle_stars": level.stars.of(replay.won, replay.score), "oracle_score": replay.score,
+        "oracle_blocks": replay.blocks, "two_stars": level.stars.two, "three_stars": level.stars.three,
+        "robustness": robust, "robustness_stored": level.oracle.robustness,
+        "one_shot_wins": len(one_shot), "one_shot_below_three": sum(s < 3 for s in one_shot),
+    }
+
+
+def overall(rows: list[dict]) -> dict:
+    n = len(rows)
+    episodes = min(r["episodes"] for r in rows)
+    per_run = [sum(r["random_episode_runs"][k] for r in rows) / n for k in range(episodes)]
+    first3 = per_run[:3]
+    return {
+        "levels": n, "episodes": episodes,
+        "random_episode_mean": sum(r["random_episode"] for r in rows) / n,
+        "random_episode_runs_0_2": first3,
+        "random_episode_runs_0_2_mean": sum(first3) / len(first3) if first3 else None,
+        "random_single_mean": sum(r["random_single"] for r in rows) / n,
+        "random_single_max": max(r["random_single"] for r in rows),
+        "need_two": sum(r["oracle_birds"] >= 2 for r in rows),
+        "need_three": sum(r["oracle_birds"] >= 3 for r in rows),
+        "robustness_min": min(r["robustness"] for r in rows),
+        "one_shot_levels_all_three": [r["level"] for r in rows
+                                      if r["oracle_birds"] == 1 and r["one_shot_below_three"] == 0],
+        "capped_shots": sum(r["capped_shots"] for r in rows),
+    }
+
+
+def print_calibration(rows: list[dict], total: dict) -> None:
+    print(f"{'level':7} {'birds':9} {'pigs':>4} {'rand1':>6} {'randE':>6} {'min':>3} {'evid':>6} "
+          f"{'robust':>6} {'or*':>3} {'rnd*':>4} {'3*/W':>5} {'1s<3*':>7}  idea")
+    for r in rows:
+        rs = f"{r['random_stars']:.1f}" if r["random_stars"] is not None else "-"
+        print(f"{r['level']:7} {r['birds']:9} {r['pigs']:4d} {100 * r['random_single']:5.0f}% "
+              f"{100 * r['random_episode']:5.0f}% {r['oracle_birds']:3d} {r['oracle_evidence']:6d} "
+              f"{r['robustness']:6.2f} {r['oracle_stars']:3d} {rs:>4} {r['random_three_stars']:2d}/{r['random_wins']:<2d} "
+              f"{r['one_shot_below_three']:3d}/{r['one_shot_wins']:<3d}  {r['idea'][:60]}")
+    t = total
+    lo, hi = TARGET_EPISODE_WINS
+
+    def mark(ok: bool) -> str:
+        return "ok" if ok else "MISSED"
+
+    runs = ", ".join(f"{100 * x:.1f}" for x in t["random_episode_runs_0_2"])
+    print(f"\nreference baseline, episodes won: {100 * t['random_episode_mean']:.1f} % of levels over "
+          f"{t['episodes']} runs; runs 0-2 ({runs}) mean {100 * t['random_episode_runs_0_2_mean']:.1f} %  "
+          f"[target {100 * lo:.0f}-{100 * hi:.0f} %: {mark(lo <= t['random_episode_runs_0_2_mean'] <= hi)}]")
+    print(f"random single-shot wins: mean {100 * t['random_single_mean']:.1f} %, max {100 * t['random_single_max']:.0f} %"
+          f"  [target <= {100 * TARGET_MAX_SINGLE:.0f} %: {mark(t['random_single_max'] <= TARGET_MAX_SINGLE)}]")
+    print(f"levels the oracle needs 2+ birds for: {t['need_two']} [target >= {TARGET_NEED_TWO}: "
+          f"{mark(t['need_two'] >= TARGET_NEED_TWO)}]; 3+: {t['need_three']} [target >= {TARGET_NEED_THREE}: "
+          f"{mark(t['need_three'] >= TARGET_NEED_THREE)}]")
+    print(f"least robustness of a stored plan: {t['robustness_min']:.2f} [target >= {TARGET_ROBUSTNESS:.2f}: "
+          f"{mark(t['robustness_min'] >= TARGET_ROBUSTNESS)}]")
+    print(f"one-shot levels where every one-shot win seen earned 3 stars: "
+          f"{', '.join(t['one_shot_levels_all_three']) or 'none'}")
+    print(f"shots that stopped at the {C.SHOT_MAX_TIME:g} s cap: {t['capped_shots']}")
+    print("columns: rand1 = random single-shot wins, randE = random episodes won, min = oracle's fewest birds, "
+          "evid = shorter plans simulated without a win, robust = share of +-1 deg / +-0.02 power nudges of the "
+          "weakest shot that still win, or* = stars of the oracle's plan, rnd* = mean stars of random wins, "
+          "3*/W = random wins with 3 stars / random wins, 1s<3* = one-shot wins seen with fewer than 3 stars")
+
+
+# -- the command line -----------------------------------------------------------------------------
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -213,8 +233,13 @@ def main(argv: list[str] | None = None) -> int:
     rep.add_argument("--json", help="also write the report as JSON to this file")
     srch = sub.add_parser("search", help="search the levels again; store plans and star thresholds")
     srch.add_argument("--levels", help="comma-separated level ids (default: all)")
-    srch.add_argument("--jobs", type=int, default=2, help="processes (default 2)")
+    srch.add_argument("--coarse", action="store_true", help="depth 1 on the coarse grid (quick, for designing)")
     srch.add_argument("--dry-run", action="store_true", help="print what was found, write nothing")
+    cal = sub.add_parser("calibrate", help="the reference baseline, the oracle and stars, per level")
+    cal.add_argument("--levels", help="comma-separated level ids (default: all)")
+    cal.add_argument("--episodes", type=int, default=100, help="random episodes per level (default 100)")
+    cal.add_argument("--seed", type=int, default=0, help="the run seed whose draws are reproduced (default 0)")
+    cal.add_argument("--json", help="also write the calibration as JSON to this file")
     args = parser.parse_args(argv)
 
     ids = level_ids()
@@ -226,22 +251,20 @@ def main(argv: list[str] | None = None) -> int:
         ids = wanted
 
     if args.command == "search":
-        failed = []
-        with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            for level_id, best, sims, cpu in pool.map(search_level, ids):
-                if best is None:
-                    failed.append(level_id)
-                    print(f"{level_id}: NO WIN FOUND ({sims} shots simulated, {cpu:.0f} s)", flush=True)
-                    continue
-                print(f"{level_id}: wins in {len(best.plan)} shot(s), score {best.score}, "
-                      f"{best.blocks} blocks ({sims} plans simulated, {cpu:.0f} s CPU)", flush=True)
-                if not args.dry_run:
-                    store(load_level(level_id), best, sims)
-        if args.dry_run:
-            return 1 if failed else 0
-        rows = report_rows(ids)
-        print_report(rows)
-        return 1 if failed or any(r.get("problem") for r in rows) else 0
+        return run_search(ids, args.coarse, args.dry_run)
+    if args.command == "calibrate":
+        if args.episodes < 1:
+            parser.error("--episodes must be at least 1")
+        rows = []
+        for level_id in ids:
+            t0 = time.process_time()
+            rows.append(calibrate_level(level_id, args.episodes, args.seed))
+            print(f"  {level_id} calibrated ({time.process_time() - t0:.0f} s CPU)", file=sys.stderr, flush=True)
+        total = overall(rows)
+        print_calibration(rows, total)
+        if args.json:
+            Path(args.json).write_text(json.dumps({"levels": rows, "overall": total}, indent=1) + "\n")
+        return 0
 
     rows = report_rows(ids)
     print_report(rows)
