@@ -239,6 +239,11 @@ def play_through(page, drive, texts: list[str], shot: Path | None = None, shot_a
         written.append(set_action(page, drive, texts[len(written)]))
         if shot is not None and len(written) == shot_at:
             screenshot(page, shot)
+            # Chromium's full-page capture resizes the viewport and restores it late on a tall
+            # page (a click then reached nothing): act from the same decision on a fresh load
+            page.reload()
+            wait_for_decision(page)
+            set_action(page, drive, texts[len(written) - 1])
         act(page)
     return written
 
