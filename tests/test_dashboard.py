@@ -422,17 +422,20 @@ def test_a_run_that_takes_long_to_load_does_not_hold_up_the_others(run_dir, tmp_
         async with TestClient(TestServer(make_app(dashboard))) as client:
             await asyncio.sleep(0.5)  # the big run's first slices are being read
             assert dashboard.sources[next(iter(dashboard.sources))].loading
-            waits = []
+            big_source = dashboard.sources[next(iter(dashboard.sources))]
+            waits = []  # of the answers given while the big run was still loading
             end = time.monotonic() + 4
-            while time.monotonic() < end:  # the single shared thread made these wait for whole slices
+            while time.monotonic() < end and big_source.loading:  # one shared thread made these wait for whole slices
                 t0 = time.monotonic()
                 assert (await client.get(f"/api/runs/{small.id}/report")).status == 200
-                waits.append(time.monotonic() - t0)
+                if big_source.loading:
+                    waits.append(time.monotonic() - t0)
                 await asyncio.sleep(0.1)
-            return waits, dashboard.sources[next(iter(dashboard.sources))].loading
+            return waits
 
-    waits, still_loading = asyncio.run(scenario())
-    assert still_loading and max(waits) < 0.5, waits
+    waits = asyncio.run(scenario())
+    # a loose bound (a loaded 2-core machine): a whole slice of the big run took seconds
+    assert len(waits) >= 3 and max(waits) < 1.0, waits
 
 
 def test_only_loopback_hosts_are_answered_without_a_token(run_dir):
