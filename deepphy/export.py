@@ -24,7 +24,7 @@ from deepphy.envs.base import Planning
 from deepphy.runs.records import AttemptRecord, KeyFrame
 from deepphy.prompts.base import CURRENT_OBSERVATION
 from deepphy.runs.store import (
-    FRAMES, OLD_IMAGE_PLACEHOLDER, PROMPTS, RunDirError, check_records, image_file, inside, is_stored_prompt,
+    FRAMES, OLD_IMAGE_PLACEHOLDER, PROMPTS, RunDirError, check_records, image_file, inside, load_stored_prompt,
     read_config, read_records, stored_image,
 )
 
@@ -162,14 +162,7 @@ def _prompt(run_dir: Path, task: str, digest: str, images: _Images, cache: dict)
         path = inside(run_dir, rel)  # the digest is a validated record's
         if path is None:
             raise RunDirError(f"{run_dir}: {rel} leads out of the run directory; refusing to read it")
-        try:
-            messages = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise RunDirError(f"{run_dir}: prompt {digest} is missing ({rel})") from None
-        except (OSError, ValueError, RecursionError) as e:
-            raise RunDirError(f"{run_dir}: {rel} cannot be read ({type(e).__name__})") from None
-        if not is_stored_prompt(messages):
-            raise RunDirError(f"{run_dir}: {rel} is not a stored prompt (a list of messages)")
+        messages = load_stored_prompt(run_dir, path, digest)
         found = _Prompt([], [], [], [], 0)
         current = False  # past the current observation's heading
         for m in messages:

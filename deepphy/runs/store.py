@@ -516,6 +516,21 @@ def image_file(path: str | Path, digest: str) -> Path | None:
     return target if target is not None and target.parent == root / IMAGES and target.is_file() else None
 
 
+def load_stored_prompt(run_dir: str | Path, target: Path, digest: str) -> list[dict]:
+    """The JSON of prompt `digest` at `target` (already confined to `run_dir`), checked to be
+    a stored prompt; RunDirError in one line otherwise."""
+    rel = f"{PROMPTS}/{digest}.json"
+    try:
+        stored = json.loads(target.read_text())
+    except FileNotFoundError:
+        raise RunDirError(f"{run_dir}: prompt {digest} is missing ({rel})") from None
+    except (OSError, ValueError, RecursionError) as e:
+        raise RunDirError(f"{run_dir}: {rel} cannot be read ({type(e).__name__})") from None
+    if not is_stored_prompt(stored):
+        raise RunDirError(f"{run_dir}: {rel} is not a stored prompt (a list of messages)")
+    return stored
+
+
 def read_prompt(path: str | Path, digest: str) -> list[Message]:
     """The exact messages of a stored prompt, images included (read from images/ and checked
     against their digests): the request a model received, rebuilt from the run directory.
@@ -526,13 +541,8 @@ def read_prompt(path: str | Path, digest: str) -> list[Message]:
     target = inside(root, rel) if re.fullmatch(r"[0-9a-f]{8,64}", digest) else None
     if target is None:
         raise RunDirError(f"{path}: {rel} is not a prompt of this run directory")
-    try:
-        stored = json.loads(target.read_text())
-    except FileNotFoundError:
-        raise RunDirError(f"{path}: prompt {digest} is missing ({rel})") from None
-    except (OSError, ValueError, RecursionError) as e:
-        raise RunDirError(f"{path}: {rel} cannot be read ({type(e).__name__})") from None
-    if not is_stored_prompt(stored) or any(m["role"] not in ("system", "user", "assistant") for m in stored):
+    stored = load_stored_prompt(path, target, digest)
+    if any(m["role"] not in ("system", "user", "assistant") for m in stored):
         raise RunDirError(f"{path}: {rel} is not a stored prompt (a list of messages)")
     messages = []
     for m in stored:
