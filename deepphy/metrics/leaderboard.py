@@ -164,22 +164,29 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
     return Leaderboard([list(groups.values())[g] for g in by_column], sorted(rows, key=rows.get), cells, notes)
 
 
-def not_started(root: Path, started: Collection[Path]) -> dict[Path, dict[str, Any]]:
+def not_started(root: Path, started: Collection[Path],
+                known: dict[str, dict[str, Any]] | None = None) -> dict[Path, dict[str, Any]]:
     """The cells a suite manifest in `root` lists whose run directory is not among `started`
     (resolved paths), each as the report of a run with no record yet: on the board they are
-    `unfinished 0/t`. {} where `root` holds no manifest; SuiteError for a bad one."""
+    `unfinished 0/t`. {} where `root` holds no manifest; SuiteError for a bad one. `known`:
+    such reports by their config's JSON, reused and added to (a live view asks every second)."""
     from deepphy.metrics.report import build_report
     from deepphy.runner import resolve
     from deepphy.suite import MANIFEST, read_manifest
 
     if not (root / MANIFEST).is_file():
         return {}
+    known = {} if known is None else known
     out = {}
     for cell in read_manifest(root):
         path = (root / cell.dir).resolve()
-        if path not in started:
+        if path in started:
+            continue
+        key = cell.config.model_dump_json()
+        if key not in known:
             _, tasks, k_max = resolve(cell.config)
-            out[path] = build_report(cell.config, tasks, [], k_max)
+            known[key] = build_report(cell.config, tasks, [], k_max)
+        out[path] = known[key]
     return out
 
 
