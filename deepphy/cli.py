@@ -124,6 +124,9 @@ def build_parser() -> argparse.ArgumentParser:
     export = sub.add_parser("export", help="write the decisions of run directories as a Parquet dataset")
     export.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
     export.add_argument("--out", required=True, help="dataset directory (Parquet, images, README.md)")
+    export.add_argument("--layout", choices=["decisions", "chat"], default="decisions",
+                        help="decisions (default): every field of each decision; chat: each decision as the "
+                             "conversation the model saw plus its reply, images by path, for fine-tuning")
 
     # --help is the solver's own once an environment is named: `solve --env phyre --help`
     solve = sub.add_parser("solve", add_help=False,
@@ -612,7 +615,7 @@ def cmd_repair(args: argparse.Namespace) -> int:
 def cmd_export(args: argparse.Namespace) -> int:
     from deepphy.export import export
 
-    summary = export(args.run_dirs, args.out)
+    summary = export(args.run_dirs, args.out, args.layout)
     print(f"{summary.rows} decisions from {summary.runs} run director{'y' if summary.runs == 1 else 'ies'}, "
           f"{summary.images} images -> {summary.out}")
     return 0
