@@ -238,6 +238,6 @@ def test_stored_images_are_validated_and_confined(cuttherope_run, tmp_path):
     assert image_file(run, "../" + image) is None
     # An edited prompt whose image reference is not a digest is not a stored prompt.
     path = run / "prompts" / f"{digest}.json"
-    path.write_text(re.sub(r'"image": "[0-9a-f]{64}"', '"image": "../../secret"', path.read_text(), count=1))
+    path.write_text(re.sub(r'"image":"[0-9a-f]{64}"', '"image":"../../secret"', path.read_text(), count=1))
     with pytest.raises(RunDirError, match="not a stored prompt"):
         read_prompt(run, digest)
