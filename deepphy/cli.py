@@ -124,6 +124,9 @@ def build_parser() -> argparse.ArgumentParser:
     export = sub.add_parser("export", help="write the decisions of run directories as a Parquet dataset")
     export.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
     export.add_argument("--out", required=True, help="dataset directory (Parquet, images, README.md)")
+    export.add_argument("--layout", choices=["decisions", "chat"], default="decisions",
+                        help="decisions (default): every field of each decision; chat: each decision as the "
+                             "conversation the model saw plus its reply, images by path, for fine-tuning")
 
     # --help is the solver's own once an environment is named: `solve --env phyre --help`
     solve = sub.add_parser("solve", add_help=False,
@@ -285,34 +288,40 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_leaderboard(args: argparse.Namespace) -> int:
+def _board_reports(paths: list[Path], plain_runs: bool = False) -> dict[Path, dict]:
+    """Each run directory's report, by resolved path: the runs given, those below the
+    directories given (a suite root), and the cells of a suite manifest not started yet
+    (as reports with no record). `plain_runs`: a path that holds no run is passed on as
+    one (its reader says what is wrong), else refused here."""
     from deepphy.dashboard.source import runs_in
-    from deepphy.metrics import leaderboard as L
-    from deepphy.metrics.report import build_report, report_of
-    from deepphy.runner import resolve
-    from deepphy.suite import MANIFEST, SuiteError, read_manifest
+    from deepphy.metrics.leaderboard import not_started
+    from deepphy.metrics.report import report_of
+    from deepphy.suite import SuiteError
 
-    reports: dict[Path, dict] = {}
-    for path in map(Path, args.paths):
-        if not path.is_dir():
+    found: dict[Path, Path] = {}
+    waiting: dict[Path, dict] = {}
+    for path in paths:
+        if not plain_runs and not path.is_dir():
             raise UserError(f"{path} is not a directory")
-        found = runs_in(path)
-        for run_dir in found:
-            reports.setdefault(run_dir.resolve(), None)
-        if (path / MANIFEST).is_file():  # a suite's cells not started yet: shown as such
-            try:
-                listed = read_manifest(path)
-            except SuiteError as e:
-                raise UserError(str(e)) from None
-            for cell in listed:
-                if (path / cell.dir).resolve() not in reports:
-                    _, tasks, k_max = resolve(cell.config)
-                    reports[(path / cell.dir).resolve()] = build_report(cell.config, tasks, [], k_max)
-        elif not found:
+        runs = runs_in(path)
+        for run_dir in runs or ([path] if plain_runs else []):
+            found.setdefault(run_dir.resolve(), run_dir)
+        try:
+            listed = not_started(path, set(found) | set(waiting))
+        except SuiteError as e:
+            raise UserError(str(e)) from None
+        waiting.update(listed)
+        if not runs and not plain_runs and not listed:
             raise UserError(f"{path} holds no run directory (none up to three folders down)")
+    return {**{d: report_of(p) for d, p in found.items()}, **waiting}
+
+
+def cmd_leaderboard(args: argparse.Namespace) -> int:
+    from deepphy.metrics import leaderboard as L
+
+    reports = _board_reports(list(map(Path, args.paths)))
     try:
-        board = L.leaderboard([r if r is not None else report_of(d) for d, r in reports.items()],
-                              [_shown_path(str(d)) for d in reports])
+        board = L.leaderboard(list(reports.values()), [_shown_path(str(d)) for d in reports])
     except L.LeaderboardError as e:
         raise UserError(str(e)) from None
     render = (L.render_json if args.json else L.render_csv if args.csv else L.render_markdown if args.markdown
@@ -558,18 +567,24 @@ def cmd_play(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from deepphy.dashboard.source import runs_in
-    from deepphy.metrics.report import mixed_task_sets, report_of
+    from deepphy.dashboard.source import is_run_dir
+    from deepphy.metrics.leaderboard import LeaderboardError, leaderboard
+    from deepphy.metrics.report import mixed_task_sets
     from deepphy.plots import plot_all
 
     # a suite root (or any directory of runs) stands for its run directories
-    run_dirs = [run for path in map(Path, args.run_dirs) for run in (runs_in(path) or [path])]
-    reports = [report_of(run_dir) for run_dir in dict.fromkeys(run_dirs)]
+    by_dir = _board_reports(list(map(Path, args.run_dirs)), plain_runs=True)
+    reports = [r for d, r in by_dir.items() if is_run_dir(d)]  # a cell not started is on the board only
     for env in dict.fromkeys(r["env"] for r in reports):
         note = mixed_task_sets([r for r in reports if r["env"] == env])
         if note:
             print(f"deepphy: warning: {note}", file=sys.stderr)
-    written = plot_all(reports, args.out)
+    try:
+        board = leaderboard(list(by_dir.values()), [_shown_path(str(d)) for d in by_dir])
+    except LeaderboardError as e:  # e.g. two runs of one setting: the other figures still apply
+        print(f"deepphy: warning: no leaderboard figure: {e}", file=sys.stderr)
+        board = None
+    written = plot_all(reports, args.out, board)
     if not written:
         raise UserError("none of the figures applies to these run directories")
     for path in written:
@@ -600,7 +615,7 @@ def cmd_repair(args: argparse.Namespace) -> int:
 def cmd_export(args: argparse.Namespace) -> int:
     from deepphy.export import export
 
-    summary = export(args.run_dirs, args.out)
+    summary = export(args.run_dirs, args.out, args.layout)
     print(f"{summary.rows} decisions from {summary.runs} run director{'y' if summary.runs == 1 else 'ies'}, "
           f"{summary.images} images -> {summary.out}")
     return 0

@@ -4,6 +4,8 @@ One row per decision (step of an attempt) with its prompt (messages, images by r
 path), raw reply, parsed action, validity and outcome; the key frames are copied next to
 it; README.md is the dataset card. Loadable with `pandas.read_parquet(DIR / DATA_FILE)`
 and `datasets.load_dataset("parquet", data_files=...)`, or `datasets.load_dataset(DIR)`.
+The chat layout (`--layout chat`, CHAT_FILE) is the same decisions for supervised
+fine-tuning: the conversation as the model saw it, then its reply, images by path.
 """
 
 from __future__ import annotations
@@ -82,8 +84,30 @@ FIELDS: list[tuple[str, pa.DataType, str]] = [
     ("attempt_input_tokens", pa.int64(), "input tokens of the whole attempt"),
     ("attempt_output_tokens", pa.int64(), "output tokens of the whole attempt"),
     ("attempt_cost_usd", pa.float64(), "model cost of the whole attempt"),
+    ("attempt_images_dropped", pa.int32(), "images of the attempt's requests left out to meet the endpoint's "
+                                           "per-request image limit (each sent as a one-line text in its place)"),
 ]
 SCHEMA = pa.schema([(name, type_) for name, type_, _ in FIELDS])
+
+# The chat layout: a part is a text or an image (by path), as the model's API received it
+# (an image's name and caption are not sent with it; the prompt's text says what it shows).
+CHAT_FILE = "data/chat.parquet"
+CHAT_PART = pa.struct([("type", pa.string()), ("text", pa.string()), ("image", pa.string())])
+CHAT_MESSAGE = pa.struct([("role", pa.string()), ("content", pa.list_(CHAT_PART))])
+_FIELD = {f[0]: f for f in FIELDS}
+CHAT_FIELDS: list[tuple[str, pa.DataType, str]] = [
+    *(_FIELD[name] for name in ("source", "env", "task", "group", "run", "attempt", "step", "model", "format",
+                                "seed", "prompt_digest")),
+    ("messages", pa.list_(CHAT_MESSAGE),
+     "the conversation as the model saw it (system, user and earlier turns, in order), then the model's reply as "
+     "the last message (role assistant); a part is {type: text, text} or {type: image, image: relative path}"),
+    ("images", pa.list_(pa.string()), "relative paths of the conversation's images, in the order of its image parts"),
+    *(_FIELD[name] for name in ("observation_images", "history_images", "images_not_stored", "action_text", "valid",
+                                "invalid_reason", "final_step", "success", "outcome", "stars", "score",
+                                "attempt_images_dropped")),
+]
+CHAT_SCHEMA = pa.schema([(name, type_) for name, type_, _ in CHAT_FIELDS])
+LAYOUTS = {"decisions": (DATA_FILE, SCHEMA, FIELDS), "chat": (CHAT_FILE, CHAT_SCHEMA, CHAT_FIELDS)}
 
 
 @dataclass
@@ -192,8 +216,9 @@ def _prompt(run_dir: Path, task: str, digest: str, images: _Images, cache: dict)
     return cache[digest]
 
 
-def rows_of(run_dir: Path, source: str, staging: Path) -> tuple[list[dict[str, Any]], int]:
-    """The rows of one run directory (copying its images into `staging`) and the image count."""
+def rows_of(run_dir: Path, source: str, staging: Path, layout: str = "decisions") -> tuple[list[dict[str, Any]], int]:
+    """The rows of one run directory in `layout` (copying the images they name into
+    `staging`) and the image count."""
     from deepphy.runner import resolve
 
     images = _Images(run_dir, staging, source)
@@ -206,9 +231,9 @@ def rows_of(run_dir: Path, source: str, staging: Path) -> tuple[list[dict[str, A
         for i, s in enumerate(r.steps):
             last = i == len(r.steps) - 1
             prompt = _prompt(run_dir, r.task, s.prompt, images, prompts)
-            frames = _frames_of_step(r, s.step, last)
+            frames = _frames_of_step(r, s.step, last) if layout == "decisions" else []  # chat: inputs only
             usage = r.model_stats.usage
-            rows.append({
+            row = {
                 "source": source, "env": r.env, "task": r.task, "group": r.group, "run": r.run,
                 "attempt": r.attempt, "step": s.step, "model": r.model, "format": r.format, "seed": r.seed,
                 "prompt_digest": s.prompt, "prompt": prompt.messages, "images": prompt.images,
@@ -223,9 +248,29 @@ def rows_of(run_dir: Path, source: str, staging: Path) -> tuple[list[dict[str, A
                 "final_step": last, "success": r.success, "attempt_invalid_reason": r.invalid_reason,
                 "outcome": r.feedback, "stars": r.stars, "score": r.score,
                 "attempt_input_tokens": usage.input_tokens, "attempt_output_tokens": usage.output_tokens,
-                "attempt_cost_usd": usage.cost_usd,
-            })
+                "attempt_cost_usd": usage.cost_usd, "attempt_images_dropped": r.model_stats.images_dropped,
+            }
+            rows.append(chat_row(row) if layout == "chat" else row)
     return rows, sum(1 for p in images.copied.values() if p)
+
+
+def chat_row(row: dict[str, Any]) -> dict[str, Any]:
+    """A decision row in the chat layout: its prompt's messages with image parts by path,
+    then the reply. An image the run did not store (runs from before images/) stays a text
+    part saying so, counted in `images_not_stored`."""
+    messages = []
+    for m in row["prompt"]:
+        content = []
+        for p in m["content"]:
+            if p["type"] == "text":
+                content.append({"type": "text", "text": p["text"], "image": None})
+            elif p["image"] is not None:
+                content.append({"type": "image", "text": None, "image": p["image"]})
+            else:
+                content.append({"type": "text", "text": f"<image not stored: {p['caption']}>", "image": None})
+        messages.append({"role": m["role"], "content": content})
+    messages.append({"role": "assistant", "content": [{"type": "text", "text": row["raw_output"], "image": None}]})
+    return {**{k: row[k] for k in CHAT_SCHEMA.names if k != "messages"}, "messages": messages}
 
 
 def _source_names(run_dirs: Sequence[Path]) -> list[str]:
@@ -239,9 +284,12 @@ def _source_names(run_dirs: Sequence[Path]) -> list[str]:
     return names
 
 
-def export(run_dirs: Sequence[str | Path], out: str | Path) -> ExportSummary:
+def export(run_dirs: Sequence[str | Path], out: str | Path, layout: str = "decisions") -> ExportSummary:
     """Write the dataset to `out` (a new or empty directory, or an earlier export, which is
-    replaced only once the new one is complete)."""
+    replaced only once the new one is complete), in `layout` (see LAYOUTS)."""
+    if layout not in LAYOUTS:
+        raise ValueError(f"unknown layout {layout!r}; one of {', '.join(LAYOUTS)}")
+    data_file, schema, _ = LAYOUTS[layout]
     out = Path(out)
     dirs = [Path(d).resolve() for d in run_dirs]
     if len(set(dirs)) != len(dirs):
@@ -256,13 +304,13 @@ def export(run_dirs: Sequence[str | Path], out: str | Path) -> ExportSummary:
         rows: list[dict[str, Any]] = []
         sources = []
         for d, name, config in zip(dirs, _source_names(dirs), configs):
-            mine, _ = rows_of(d, name, staging)
+            mine, _ = rows_of(d, name, staging, layout)
             rows += mine
             sources.append((name, config, len(mine)))
         n_images = sum(1 for _ in (staging / IMAGES).rglob("*.png"))  # an image shared by runs is one file
-        (staging / DATA_FILE).parent.mkdir(parents=True, exist_ok=True)
-        pq.write_table(pa.Table.from_pylist(rows, schema=SCHEMA), staging / DATA_FILE, compression="zstd")
-        (staging / "README.md").write_text(dataset_card(sources, len(rows), n_images))
+        (staging / data_file).parent.mkdir(parents=True, exist_ok=True)
+        pq.write_table(pa.Table.from_pylist(rows, schema=schema), staging / data_file, compression="zstd")
+        (staging / "README.md").write_text(dataset_card(sources, len(rows), n_images, layout))
         if out.exists():
             old = out.with_name(f".{out.name}.old-{os.getpid()}")
             out.rename(old)
@@ -281,19 +329,53 @@ def _is_export(path: Path) -> bool:
     return card.is_file() and MARKER in card.read_text(errors="replace")
 
 
-def dataset_card(sources: list[tuple[str, Any, int]], rows: int, images: int) -> str:
+def dataset_card(sources: list[tuple[str, Any, int]], rows: int, images: int, layout: str = "decisions") -> str:
+    data_file, _, fields = LAYOUTS[layout]
     source_lines = "\n".join(
         f"| `{name}` | {c.env} | {c.model} | {c.format.value} | {c.runs} | {c.seed} | "
         f"`{json.dumps(c.env_options, sort_keys=True)}` | {n} |"
         for name, c, n in sources
     )
-    field_lines = "\n".join(f"| `{name}` | `{type_}` | {meaning} |" for name, type_, meaning in FIELDS)
+    field_lines = "\n".join(f"| `{name}` | `{type_}` | {meaning} |" for name, type_, meaning in fields)
     by_planning = {p: ", ".join(s.title for s in specs().values() if s.planning is p) for p in Planning}
     in_advance, on_the_fly = by_planning[Planning.IN_ADVANCE], by_planning[Planning.ON_THE_FLY]
+    key_frames = "" if layout == "chat" else f""" Key frames (what happened after a
+decision) are `{IMAGES}/<source>/<task>/<file>.png`, referenced from `key_frames`."""
+    if layout == "chat":
+        layout_text = f"""Layout `chat` (`deepphy export --layout chat`), for supervised fine-tuning: each row's
+`messages` is the conversation as the model was sent it (the stored
+prompt: system and user messages, text and images in order), followed by the model's
+reply as an `assistant` message. An image part names its file in `image` (a path
+relative to this directory); `images` lists them in the order of the image parts (the
+layout of TRL's vision SFT: one image per image part, in order). Choose rows to train on
+with the outcome columns: e.g. `success` (the attempt solved the task), `valid`, `stars`.
+Where the endpoint's per-request image limit dropped older images
+(`attempt_images_dropped` > 0), the request held a one-line text in place of each; the
+conversation here keeps the images."""
+        loading = f"""```python
+import datasets
+from PIL import Image
+ds = datasets.load_dataset("parquet", data_files="{data_file}")["train"]
+row = ds[0]
+images = [Image.open(path) for path in row["images"]]  # paths relative to this directory
+for m in row["messages"]:
+    print(m["role"], [p["text"] if p["type"] == "text" else "<image " + p["image"] + ">" for p in m["content"]])
+```"""
+    else:
+        layout_text = """Layout `decisions` (the default): every field of a decision and its attempt; the
+prompt's image parts keep their names and captions. `deepphy export --layout chat`
+writes the same decisions as conversations for supervised fine-tuning."""
+        loading = f"""```python
+import pandas as pd
+df = pd.read_parquet("{data_file}")
+
+import datasets
+ds = datasets.load_dataset("parquet", data_files="{data_file}")["train"]
+```"""
     return f"""---
 configs:
 - config_name: default
-  data_files: {DATA_FILE}
+  data_files: {data_file}
 ---
 {MARKER}
 # deepphy trajectories
@@ -307,6 +389,8 @@ sees its earlier failed attempts. In-advance environments ({in_advance}) take on
 decision per attempt; on-the-fly ones ({on_the_fly}) several. `success`,
 `outcome`, `stars` and the `attempt_*` columns describe the whole attempt and repeat on
 each of its decisions.
+
+{layout_text}
 
 ## Sources
 
@@ -324,20 +408,14 @@ each of its decisions.
 
 Every image a model was shown is `{BY_DIGEST}/<sha256>.png` (the sha256 of its PNG bytes:
 one file however many prompts, attempts and runs showed it), referenced by relative path
-from the image parts of `prompt` and listed in `images`, `observation_images` (the scene
-the decision was made from) and `history_images`. Key frames (what happened after a
-decision) are `{IMAGES}/<source>/<task>/<file>.png`, referenced from `key_frames`. Runs
-made before deepphy stored every prompt image kept only the key frames: there the current
-observation's prompt part has `image = null` (with its name and caption), counted in
+from the conversation's image parts and listed in `images`, `observation_images` (the
+scene the decision was made from) and `history_images`.{key_frames}
+Runs made before deepphy stored every prompt image kept only the key frames: there the
+current observation is not in the dataset ({"its prompt part has `image = null`, with its name and caption"
+if layout == "decisions" else "its part is the text `<image not stored: CAPTION>`"}), counted in
 `images_not_stored`.
 
 ## Loading
 
-```python
-import pandas as pd
-df = pd.read_parquet("{DATA_FILE}")
-
-import datasets
-ds = datasets.load_dataset("parquet", data_files="{DATA_FILE}")["train"]
-```
+{loading}
 """

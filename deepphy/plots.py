@@ -6,7 +6,8 @@ the reports themselves, per environment: attempts K > 1 -> cumulative bars; seve
 decisions per attempt -> success by decision (shot, action); task groups -> success per
 group (Kinetix's sizes, PHYRE's setups); a boolean `annotate` option with both values ->
 dumbbell; `stars` -> star bars; and across environments, both prompt formats of one
-setting -> VLA-vs-WM scatter.
+setting -> VLA-vs-WM scatter. Across settings, the leaderboard (`draw_leaderboard`) is the
+master table `deepphy leaderboard` prints, as a figure: a panel per environment setting.
 Matplotlib is used through `Figure` objects only (no pyplot, no global backend).
 """
 
@@ -22,6 +23,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
+from deepphy.metrics.leaderboard import Leaderboard
 from deepphy.metrics.report import setting
 
 Report = dict[str, Any]
@@ -349,6 +351,99 @@ def draw_star_bars(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
     return drawn
 
 
+# -- the leaderboard (across environments) -----------------------------------------------
+
+UNFINISHED_HATCH = "////"
+BEST_MARK = "\u2605"  # above the best bar of a column (the table's "*")
+
+
+def leaderboard_panels(board: Leaderboard) -> list[tuple[str, int, list[int], bool]]:
+    """(title, group, column indices, percent) of each panel: an environment setting's
+    percent figures on one axis, its counts (stars) on a panel of their own."""
+    panels = []
+    for g, group in enumerate(board.groups):
+        for percent in (True, False):
+            columns = [c for c, col in enumerate(group.columns) if col.percent == percent]
+            if columns:
+                title = group.title if percent else ", ".join([group.title] + [group.columns[c].header for c in columns])
+                panels.append((title, g, columns, percent))
+    return panels
+
+
+def draw_leaderboard(fig: Figure, board: Leaderboard) -> dict[str, Any]:
+    """A panel per environment setting (`leaderboard_panels`): its headline figures side by
+    side, a bar per model x format, mean ± std over runs. The best of a column carries a
+    star; an unfinished run is a hatched, empty slot with its episodes done/total (never a
+    bar); a setting without a run of that environment says "no run"."""
+    panels = leaderboard_panels(board)
+    ncols = min(3, len(panels))
+    axes = fig.subplots(math.ceil(len(panels) / ncols), ncols, squeeze=False).ravel()
+    labels_ = [board.row_label(i) for i in range(len(board.rows))]
+    width = min(0.8 / max(1, len(board.rows)), 0.3)
+    drawn: dict[str, Any] = {"rows": labels_, "panels": []}
+    for ax, (title, g, columns, percent) in zip(axes, panels):
+        scale = 100.0 if percent else 1.0
+        cells = [[board.cells[(r, g)][c] if (r, g) in board.cells else None for c in columns]
+                 for r in range(len(board.rows))]
+        finished = [(x.mean, x.std or 0.0) for row in cells for x in row if x and x.unfinished is None and x.mean is not None]
+        top = max([scale * (m + s) for m, s in finished] + [0.0])
+        ymax = _percent_limits(top * 1.1) if percent else max(1.0, 1.2 * top)
+        panel = {"title": title, "columns": [board.groups[g].columns[c].header for c in columns], "bars": []}
+        for r, row in enumerate(cells):
+            xs = [j + (r - (len(board.rows) - 1) / 2) * width for j in range(len(columns))]
+            values = [x.mean if x and x.unfinished is None else None for x in row]
+            errs = [(x.std or 0.0) if x and x.unfinished is None else 0.0 for x in row]
+            shown = [(x_, v, e) for x_, v, e in zip(xs, values, errs) if v is not None]
+            if shown:
+                sx, sv, se = zip(*shown)
+                low, high = _clipped(sv, se, 1.0 if percent else None)
+                ax.bar(sx, [scale * v for v in sv], width=width * 0.92, color=COLORS[r % len(COLORS)],
+                       yerr=[[scale * e for e in low], [scale * e for e in high]], capsize=2,
+                       error_kw={"linewidth": 0.8})
+                for x_, v, h, cell in zip(sx, sv, high, [x for x in row if x and x.unfinished is None and x.mean is not None]):
+                    if cell.best:
+                        ax.annotate(BEST_MARK, (x_, scale * (v + h)), xytext=(0, 1), textcoords="offset points",
+                                    ha="center", va="bottom", fontsize=8)
+            for x_, cell in zip(xs, row):
+                if cell is None:  # told apart from a 0 % bar
+                    ax.text(x_, 0, "no run", rotation=90, ha="center", va="bottom", fontsize=6, color="#9ca3af")
+                elif cell.unfinished is not None:
+                    ax.bar(x_, ymax, width=width * 0.92, facecolor="none", edgecolor="#9ca3af",
+                           hatch=UNFINISHED_HATCH, linewidth=0.6)
+                    ax.text(x_, ymax * 0.5, f"unfinished {cell.unfinished}", rotation=90, ha="center",
+                            va="center", fontsize=6, color="#4b5563",
+                            bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5})
+            panel["bars"].append({"row": labels_[r], "mean": values, "std": errs,
+                                  "best": [bool(x and x.best) for x in row],
+                                  "unfinished": [x.unfinished if x else None for x in row],
+                                  "missing": [x is None for x in row]})
+        _style(ax)
+        ax.set_title(title, fontsize=9)
+        ax.set_xticks(range(len(columns)), panel["columns"])
+        ax.set_xlim(-0.5 - max(0, 1 - len(columns)) / 2, len(columns) - 0.5 + max(0, 1 - len(columns)) / 2)
+        ax.set_ylim(0, ymax)
+        if not percent:
+            ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_ylabel("%" if percent else "per run", fontsize=8)
+        drawn["panels"].append(panel)
+    for ax in axes[len(panels):]:
+        ax.set_visible(False)
+    from matplotlib.patches import Patch
+
+    handles = [Patch(color=COLORS[r % len(COLORS)], label=label) for r, label in enumerate(labels_)]
+    handles.append(Patch(facecolor="none", edgecolor="#9ca3af", hatch=UNFINISHED_HATCH,
+                         label="unfinished (episodes done/total)"))
+    fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 4), fontsize=8, frameon=False,
+               title=f"mean \u00b1 std over runs; {BEST_MARK} best of the column", title_fontsize=8)
+    return drawn
+
+
+def _leaderboard_size(board: Leaderboard) -> tuple[float, float]:
+    n = len(leaderboard_panels(board))
+    ncols = min(3, n)
+    return 3.3 * ncols, 2.5 * math.ceil(n / ncols) + 0.35 * (1 + math.ceil((len(board.rows) + 1) / 4))
+
+
 # -- all figures --------------------------------------------------------------------------
 
 
@@ -392,23 +487,34 @@ def _size(draw, reports: Sequence[Report]) -> tuple[float, float]:
     return 7.0, 3.6
 
 
-def plot_all(reports: Sequence[Report], out: str | Path) -> list[Path]:
-    """Write every applicable figure as PNG and PDF, and the drawn data as figures.json."""
+def plot_all(reports: Sequence[Report], out: str | Path, board: Leaderboard | None = None) -> list[Path]:
+    """Write every applicable figure as PNG and PDF, and the drawn data as figures.json;
+    with `board`, the leaderboard too where it compares anything (two settings or more)."""
     figures = figures_for(reports)
-    if not figures:
+    compares = board is not None and (len(board.groups) > 1 or len(board.rows) > 1)
+    if not figures and not compares:
         return []
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     data: dict[str, Any] = {}
+
+    def save(stem: str, fig: Figure) -> None:
+        for suffix in ("png", "pdf"):
+            path = out / f"{stem}.{suffix}"
+            fig.savefig(path, dpi=DPI)
+            written.append(path)
+
+    if compares:
+        fig = Figure(figsize=_leaderboard_size(board), layout="constrained")
+        data["leaderboard"] = draw_leaderboard(fig, board)
+        fig.suptitle("Leaderboard", fontsize=11)
+        save("leaderboard", fig)
     for stem, title, draw, rs in figures:
         fig = Figure(figsize=_size(draw, rs), layout="constrained")
         ax = fig.add_subplot()
         data[stem] = draw(ax, rs)
         ax.set_title(title, fontsize=11)
-        for suffix in ("png", "pdf"):
-            path = out / f"{stem}.{suffix}"
-            fig.savefig(path, dpi=DPI)
-            written.append(path)
+        save(stem, fig)
     (out / "figures.json").write_text(json.dumps(data, indent=1))
     return [*written, out / "figures.json"]

@@ -332,3 +332,51 @@ def test_charts_per_environment_stars_colours_and_phase(serve, open_page, screen
         page.screenshot(path=str(screenshots / "dashboard_episode_frames.png"))
     finally:
         store.close()
+
+
+def board_rows(page) -> list[list[str]]:
+    return page.eval_on_selector_all("table.leaderboard tbody tr", "rows => rows.map(r => [...r.children].map(c => c.textContent))")
+
+
+def leaderboard_rows(root) -> list[list[str]]:
+    """The rows `deepphy leaderboard ROOT --json` prints, as the page shows them."""
+    out = subprocess.run([sys.executable, "-m", "deepphy.cli", "leaderboard", "--json", str(root)],
+                         capture_output=True, text=True, check=True).stdout
+    return [[f"{r['model']} {r['format'].upper()}", *(c["text"] for c in r["cells"])] for r in json.loads(out)["rows"]]
+
+
+def test_leaderboard_of_a_suite_root_follows_its_runs(serve, open_page, screenshots, tmp_path):
+    """A suite root: its leaderboard is `deepphy leaderboard`'s table, a cell not started and
+    a run cut short shown unfinished; the run's records arriving turn it into figures live."""
+    root = tmp_path / "suite"
+    synthetic_run(root / "mock" / "iphyre" / "vla", env="iphyre", limit=4, p_success=0.3)
+    synthetic_run(root / "mock" / "angrybirds" / "vla", env="angrybirds", limit=4, stars=True, p_success=0.5)
+    full = synthetic_run(tmp_path / "full", env="iphyre", limit=4, model="gpt-4o", p_success=0.7)
+    log = copy_run(full, root / "gpt-4o" / "iphyre" / "vla", lines=3)
+    cells = [{"dir": str(p.parent.relative_to(root)), "config": read_config(p.parent).model_dump(mode="json")}
+             for p in sorted(root.rglob("config.json"))]
+    waiting = RunConfig(env="angrybirds", model="gpt-4o", runs=2, limit=4)
+    cells.append({"dir": "gpt-4o/angrybirds/vla", "config": waiting.model_dump(mode="json")})
+    (root / "suite.json").write_text(json.dumps({"suite": "test", "description": "", "cells": cells}))
+
+    server = serve(str(root))
+    page = open_page(server.url)
+    page.wait_for_function("document.querySelectorAll('.card').length === 3")
+    expected = leaderboard_rows(root)
+    page.wait_for_function("rows => JSON.stringify([...document.querySelectorAll('table.leaderboard tbody tr')]"
+                           ".map(r => [...r.children].map(c => c.textContent))) === JSON.stringify(rows)", arg=expected)
+    gpt = next(r for r in expected if r[0] == "gpt-4o VLA")
+    assert gpt[1] == "unfinished 0/8" and gpt[3].startswith("unfinished ")  # Angry Birds not started; I-PHYRE cut
+    header = page.eval_on_selector_all("table.leaderboard thead tr:first-child th[colspan]", "ths => ths.map(t => t.textContent)")
+    assert header == ["Angry Birds", "I-PHYRE"]
+    page.screenshot(path=str(screenshots / "dashboard_leaderboard_unfinished.png"), full_page=True)
+
+    page.evaluate("window.__notReloaded = true")
+    append(root / "gpt-4o" / "iphyre" / "vla", log[3:])
+    cell = 'table.leaderboard tr[data-model="gpt-4o"] td[data-column="I-PHYRE Succ@10"]'
+    page.wait_for_selector(f'{cell}[data-unfinished=""]', timeout=UPDATE_LIMIT_S * 1000)
+    expected = leaderboard_rows(root)
+    assert board_rows(page) == expected
+    assert float(page.get_attribute(cell, "data-mean")) == report_of(full)["overall"]["mean"]["success_at"][-1]
+    assert page.evaluate("window.__notReloaded") is True
+    page.screenshot(path=str(screenshots / "dashboard_leaderboard.png"), full_page=True)

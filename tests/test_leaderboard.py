@@ -120,3 +120,67 @@ def test_latex_leaderboard_compiles_and_fits_the_page(root, tmp_path):
     log = _pdflatex(render_latex(_board(_runs(root))), tmp_path)
     assert "Overfull \\hbox" not in log and "Missing character" not in log
     assert (tmp_path / "table.pdf").read_bytes()[:5] == b"%PDF-"
+
+
+def _suite_root(root, dest):
+    """`root` as a suite root: its runs, gpt-4o's PHYRE run cut short (unfinished), and a
+    manifest cell (I-PHYRE) with no run directory yet."""
+    from deepphy.config import RunConfig
+    from deepphy.runs.store import read_config
+
+    shutil.copytree(root, dest, ignore=shutil.ignore_patterns("gpt-4o"))
+    for run in (root / "gpt-4o").iterdir():
+        if run.name != "phyre":
+            shutil.copytree(run, dest / "gpt-4o" / run.name)
+    copy_run(root / "gpt-4o" / "phyre" / "vla", dest / "gpt-4o" / "phyre" / "vla", lines=5)
+    cells = [{"dir": str(p.parent.relative_to(dest)), "config": read_config(p.parent).model_dump(mode="json")}
+             for p in sorted(dest.rglob("config.json"))]
+    waiting = RunConfig(env="iphyre", model="mock", runs=3, limit=4)
+    cells.append({"dir": "mock/iphyre/vla", "config": waiting.model_dump(mode="json")})
+    (dest / "suite.json").write_text(json.dumps({"suite": "test", "description": "", "cells": cells}))
+    return dest
+
+
+def test_plot_of_a_suite_root_draws_the_leaderboard(root, tmp_path, capsys):
+    suite = _suite_root(root, tmp_path / "suite")
+    assert main(["plot", str(suite), "--out", str(tmp_path / "fig")]) == 0
+    written = capsys.readouterr().out.split()
+    assert str(tmp_path / "fig" / "leaderboard.png") in written and str(tmp_path / "fig" / "leaderboard.pdf") in written
+    assert (tmp_path / "fig" / "leaderboard.pdf").read_bytes()[:5] == b"%PDF-"
+    drawn = json.loads((tmp_path / "fig" / "figures.json").read_text())["leaderboard"]
+    assert main(["leaderboard", str(suite), "--json"]) == 0
+    table = json.loads(capsys.readouterr().out)
+    assert drawn["rows"] == [f"{r['model']} {r['format'].upper()}" for r in table["rows"]]
+    # a panel per setting's percent figures, the stars on their own; every bar the table's figure
+    assert [p["title"] for p in drawn["panels"]] == [
+        "Angry Birds", "Angry Birds, Stars", "I-PHYRE", "Kinetix", "Kinetix annotate=False", "PHYRE-B"]
+    where = {(c["title"], c["header"]): j for j, c in enumerate(table["columns"])}
+    group = {"Angry Birds, Stars": "Angry Birds"}
+    for panel in drawn["panels"]:
+        for r, bars in enumerate(panel["bars"]):
+            for k, header in enumerate(panel["columns"]):
+                cell = table["rows"][r]["cells"][where[(group.get(panel["title"], panel["title"]), header)]]
+                unfinished = cell["unfinished"]
+                assert bars["unfinished"][k] == unfinished
+                assert bars["mean"][k] == (None if unfinished else cell["mean"])
+                assert bars["best"][k] == cell["best"]
+                assert bars["missing"][k] == (cell["text"] == "-")
+    phyre = drawn["panels"][-1]["bars"]
+    assert phyre[0]["row"] == "gpt-4o VLA" and phyre[0]["unfinished"][0] and phyre[0]["mean"] == [None, None]
+    iphyre = drawn["panels"][2]["bars"]  # the cell the manifest lists and nobody started
+    assert [(b["unfinished"], b["missing"]) for b in iphyre] == [([None], [True]), (["0/12"], [False]),
+                                                                  ([None], [True])]
+
+
+def test_leaderboard_figure_marks_what_the_table_marks(root):
+    from matplotlib.figure import Figure
+
+    from deepphy.plots import BEST_MARK, draw_leaderboard
+
+    board = _board(_runs(root))
+    fig = Figure()
+    drawn = draw_leaderboard(fig, board)
+    stars_drawn = sum(t.get_text() == BEST_MARK for ax in fig.axes for t in ax.texts)
+    assert stars_drawn == sum(c.best for cells in board.cells.values() for c in cells) > 0
+    no_run = sum(t.get_text() == "no run" for ax in fig.axes for t in ax.texts)
+    assert no_run == sum(m for p in drawn["panels"] for b in p["bars"] for m in b["missing"]) > 0

@@ -17,7 +17,9 @@ import pytest
 import yaml
 
 from deepphy.config import RunConfig, RuntimeOptions
-from deepphy.export import DATA_FILE, export
+from deepphy.chat import ImagePart
+from deepphy.envs import get_spec
+from deepphy.export import CHAT_FIELDS, CHAT_FILE, DATA_FILE, export
 from deepphy.models.providers import OpenAIChatClient
 from deepphy.models.wire import CONTEXT_HEADER, decode_context
 from deepphy.prompts.base import CURRENT_OBSERVATION
@@ -124,6 +126,72 @@ def test_export_of_a_pooltool_run_names_every_input_image(ray_cluster, tmp_path)
     assert len(rows) > 2
 
 
+def check_chat_export(run: Path, out: Path) -> list[dict]:
+    """The chat layout: each row is the conversation `read_prompt` rebuilds (the request the
+    model was sent), image by image, then the reply; datasets loads it and its images open."""
+    summary = export([run], out, layout="chat")
+    rows = pq.read_table(out / CHAT_FILE).to_pylist()
+    records = {r.key: r for r in read_records(run)}
+    assert len(rows) == summary.rows == sum(len(r.steps) for r in records.values())
+    assert list(rows[0]) == [name for name, _, _ in CHAT_FIELDS]
+    for row in rows:
+        record = records[(row["task"], row["run"], row["attempt"])]
+        step = record.steps[row["step"] - 1]
+        *conversation, reply = row["messages"]
+        assert reply == {"role": "assistant", "content": [{"type": "text", "text": step.raw_output, "image": None}]}
+        sent = read_prompt(run, row["prompt_digest"])
+        assert [m["role"] for m in conversation] == [m.role for m in sent]
+        for mine, theirs in zip(conversation, sent):
+            assert len(mine["content"]) == len(theirs.content)
+            for part, p in zip(mine["content"], theirs.content):
+                if isinstance(p, ImagePart):
+                    assert part["type"] == "image" and (out / part["image"]).read_bytes() == p.image.png
+                else:
+                    assert part == {"type": "text", "text": p.text, "image": None}
+        assert row["images"] == [p["image"] for m in conversation for p in m["content"] if p["type"] == "image"]
+        assert row["observation_images"] and set(row["observation_images"]) <= set(row["images"])
+        assert row["images_not_stored"] == 0
+        assert (row["success"], row["valid"], row["stars"]) == (record.success, step.invalid_reason is None,
+                                                                record.stars)
+    # the dataset holds the conversations' images, each once, and nothing else
+    files = {p.relative_to(out).as_posix() for p in (out / "images").rglob("*.png")}
+    assert files == {p for r in rows for p in r["images"]} and summary.images == len(files)
+    card = (out / "README.md").read_text()
+    assert all(f"| `{name}` |" in card for name, _, _ in CHAT_FIELDS) and CHAT_FILE in card
+    assert get_spec(rows[0]["env"]).title in card
+
+    os.environ["HF_DATASETS_OFFLINE"] = os.environ["HF_HUB_OFFLINE"] = "1"
+    import datasets
+    from PIL import Image
+
+    ds = datasets.load_dataset("parquet", data_files=str(out / CHAT_FILE), cache_dir=str(out.parent / "hf"))["train"]
+    last = ds[len(rows) - 1]
+    assert ds.num_rows == len(rows) and last["messages"] == rows[-1]["messages"]
+    for path in last["images"]:
+        with Image.open(out / path) as image:
+            image.load()
+            assert image.size[0] > 0 and image.mode in ("RGB", "RGBA")
+    return rows
+
+
+def test_chat_export_of_a_cut_the_rope_run_is_the_conversation_the_model_saw(cuttherope_run, tmp_path):
+    rows = check_chat_export(cuttherope_run, tmp_path / "chat")
+    assert any(r["history_images"] for r in rows) and any(r["step"] > 1 for r in rows)
+
+
+def test_chat_export_of_a_phyre_run_is_the_conversation_the_model_saw(ray_cluster, tmp_path):
+    run = tmp_path / "run"
+    config = RunConfig(env="phyre", model="mock", runs=1, seed=0, limit=3, max_attempts=4)
+    assert evaluate(config, run, RUNTIME).complete
+    rows = check_chat_export(run, tmp_path / "chat")
+    assert any(len(r["images"]) > len(r["observation_images"]) for r in rows), "later attempts show earlier ones"
+    # the CLI writes the same
+    from deepphy.cli import main
+
+    assert main(["export", str(run), "--out", str(tmp_path / "cli"), "--layout", "chat"]) == 0
+    assert pq.read_table(tmp_path / "cli" / CHAT_FILE).to_pylist() == rows
+
+
 def test_a_run_from_before_stored_images_still_reads(cuttherope_run, tmp_path):
     """Old prompts hold "<image NAME: CAPTION>" placeholders and no images/: records, the
     export and the dashboard still read them; rebuilding a request says why it cannot."""
@@ -141,6 +209,10 @@ def test_a_run_from_before_stored_images_still_reads(cuttherope_run, tmp_path):
     assert all(r["images_not_stored"] >= 1 and not r["observation_images"] for r in rows)
     with pytest.raises(RunDirError, match="did not store"):
         read_prompt(old, rows[0]["prompt_digest"])
+    export([old], tmp_path / "chat", layout="chat")  # its conversations say where an image was not kept
+    chat = pq.read_table(tmp_path / "chat" / CHAT_FILE).to_pylist()
+    assert all(r["images_not_stored"] >= 1 and not r["observation_images"] for r in chat)
+    assert any(p["text"].startswith("<image not stored: ") for m in chat[0]["messages"] for p in m["content"])
 
 
 def test_stored_images_are_validated_and_confined(cuttherope_run, tmp_path):
@@ -166,6 +238,6 @@ def test_stored_images_are_validated_and_confined(cuttherope_run, tmp_path):
     assert image_file(run, "../" + image) is None
     # An edited prompt whose image reference is not a digest is not a stored prompt.
     path = run / "prompts" / f"{digest}.json"
-    path.write_text(re.sub(r'"image": "[0-9a-f]{64}"', '"image": "../../secret"', path.read_text(), count=1))
+    path.write_text(re.sub(r'"image":"[0-9a-f]{64}"', '"image":"../../secret"', path.read_text(), count=1))
     with pytest.raises(RunDirError, match="not a stored prompt"):
         read_prompt(run, digest)

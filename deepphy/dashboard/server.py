@@ -6,6 +6,9 @@ whole lines of its log), so a huge or broken run does not hold up the others; wh
 changed, its view (card, curve, report table) is recomputed, throttled for large runs, and
 pushed to every open page with the grid cells that changed. With a Ray address, the runs
 live on that cluster are found by their metrics actors and their run directories added.
+A directory of runs given (a suite root) also has a leaderboard, made by the code of
+`deepphy leaderboard` from the reports the runs' views already hold (and the manifest's
+cells not started), and pushed again whenever one of its runs changed.
 Who may read it: `guard` (a loopback Host without a token; the token beyond loopback).
 """
 
@@ -24,6 +27,7 @@ from typing import Any
 from aiohttp import web
 
 from deepphy.dashboard.source import RunSource, is_run_dir, run_id, runs_in
+from deepphy.metrics.leaderboard import LeaderboardError, as_dict, leaderboard, not_started
 from deepphy.play import replay
 
 log = logging.getLogger(__name__)
@@ -33,6 +37,7 @@ POLL_S = 0.25  # how often each run directory is checked for new records (a stat
 REFRESH_S = 2.0  # a view is re-sent at least this often while its run is live (rate, ETA)
 LIVE_POLL_S = 2.0  # how often the Ray cluster is asked for its live runs
 SCAN_S = 1.0  # how often watched directories are looked through for new run directories
+BOARD_S = 1.0  # a directory's leaderboard is made again at most this often while its runs change
 MAX_CELL_DELTA = 5000  # beyond this many changed cells, pages re-fetch their grid page
 HEARTBEAT_S = 15.0
 CLIENT_BACKLOG = 200  # messages queued for a page that does not read; then it is dropped
@@ -53,6 +58,9 @@ class Dashboard:
         # the place of its run (as given, then as found) and the page keeps that order.
         self._order: dict[str, int] = {}
         self.live_only: dict[str, dict[str, Any]] = {}  # Ray run id -> view, when its directory is not readable
+        self.boards: dict[str, dict[str, Any]] = {}  # root's id -> its leaderboard view
+        self._boards_dirty = True
+        self._not_started: dict[str, dict[str, Any]] = {}  # reports of manifest cells with no run yet
         self.clients: set[asyncio.Queue] = set()
         # Each run has a thread of its own (RunSource is not thread-safe, and a huge or broken
         # run must not hold up the others' polls and API calls); finding runs has another.
@@ -90,6 +98,7 @@ class Dashboard:
         self._tasks += [asyncio.create_task(self._run_loop(s)) for s in self.sources.values()]
         if self.roots:
             self._tasks.append(asyncio.create_task(self._scan_loop()))
+            self._tasks.append(asyncio.create_task(self._board_loop()))
         if self.address:
             self._tasks.append(asyncio.create_task(self._live_loop()))
 
@@ -144,6 +153,7 @@ class Dashboard:
         self._sent_at[source.id] = time.monotonic()
         self._place(view)
         self._broadcast({"type": "run", "run": view, "cells": cells, "grid_reset": reset})
+        self._boards_dirty |= any(source.path.is_relative_to(root) for root in self.roots)
 
     async def _scan_roots(self) -> None:
         known = {s.path for s in self.sources.values()}
@@ -172,6 +182,41 @@ class Dashboard:
             data = sse("state", self.state())
             for q in list(self.clients):
                 q.put_nowait(data)
+
+    async def _board_loop(self) -> None:
+        while True:
+            if self._boards_dirty:
+                self._boards_dirty = False
+                for root in self.roots:
+                    try:
+                        await self._update_board(root)
+                    except Exception:  # noqa: BLE001 - a bad moment of one root; try again
+                        log.exception("leaderboard of %s", root)
+                        self._boards_dirty = True
+            await asyncio.sleep(BOARD_S)
+
+    async def _update_board(self, root: Path) -> None:
+        mine = [s for s in self.sources.values() if s.path.is_relative_to(root)]
+        reports = {s.path: self.views[s.id]["report"] for s in mine if self.views.get(s.id, {}).get("report")}
+        view = await self._call(None, self._board_view, root, {s.path for s in mine}, reports)
+        if view is None or self.boards.get(view["id"]) == view:
+            return
+        self.boards[view["id"]] = view
+        self._broadcast({"type": "leaderboard", "board": view})
+
+    def _board_view(self, root: Path, started: set[Path], reports: dict[Path, dict[str, Any]]) -> dict[str, Any] | None:
+        """The leaderboard of the runs below `root` (None while there is nothing to show)."""
+        from deepphy.suite import SuiteError
+
+        view = {"id": f"board-{run_id(root)}", "path": str(root), "name": root.name, "board": None, "error": None}
+        try:
+            reports = {**reports, **not_started(root, started, self._not_started)}
+            if not reports:
+                return None
+            view["board"] = as_dict(leaderboard(list(reports.values()), [str(p) for p in reports]))
+        except (LeaderboardError, SuiteError) as e:
+            view["error"] = str(e)
+        return view
 
     async def _live_loop(self) -> None:
         from deepphy.dashboard import live
@@ -227,7 +272,8 @@ class Dashboard:
     # -- HTTP ---------------------------------------------------------------------------
 
     def state(self) -> dict[str, Any]:
-        return {"runs": sorted(self.views.values(), key=lambda v: v["order"]), "address": self.address}
+        return {"runs": sorted(self.views.values(), key=lambda v: v["order"]), "address": self.address,
+                "boards": list(self.boards.values())}
 
     async def index(self, request: web.Request) -> web.StreamResponse:
         return web.FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-cache"})

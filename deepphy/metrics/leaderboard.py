@@ -17,7 +17,7 @@ import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Collection, Sequence
 
 from deepphy.envs import get_spec, specs
 from deepphy.metrics.report import LATEX_PREAMBLE, _count, _pct, latex_escape, mixed_task_sets
@@ -164,6 +164,32 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
     return Leaderboard([list(groups.values())[g] for g in by_column], sorted(rows, key=rows.get), cells, notes)
 
 
+def not_started(root: Path, started: Collection[Path],
+                known: dict[str, dict[str, Any]] | None = None) -> dict[Path, dict[str, Any]]:
+    """The cells a suite manifest in `root` lists whose run directory is not among `started`
+    (resolved paths), each as the report of a run with no record yet: on the board they are
+    `unfinished 0/t`. {} where `root` holds no manifest; SuiteError for a bad one. `known`:
+    such reports by their config's JSON, reused and added to (a live view asks every second)."""
+    from deepphy.metrics.report import build_report
+    from deepphy.runner import resolve
+    from deepphy.suite import MANIFEST, read_manifest
+
+    if not (root / MANIFEST).is_file():
+        return {}
+    known = {} if known is None else known
+    out = {}
+    for cell in read_manifest(root):
+        path = (root / cell.dir).resolve()
+        if path in started:
+            continue
+        key = cell.config.model_dump_json()
+        if key not in known:
+            _, tasks, k_max = resolve(cell.config)
+            known[key] = build_report(cell.config, tasks, [], k_max)
+        out[path] = known[key]
+    return out
+
+
 # -- rendering --------------------------------------------------------------------------
 
 
@@ -218,8 +244,9 @@ def render_csv(board: Leaderboard) -> str:
     return buf.getvalue()
 
 
-def render_json(board: Leaderboard) -> str:
-    return json.dumps({
+def as_dict(board: Leaderboard) -> dict[str, Any]:
+    """The board as plain data (`--json`, the dashboard's leaderboard view)."""
+    return {
         "columns": [{"env": g.env, "env_options": g.options, "title": g.title, "header": c.header, "key": c.key}
                     for g in board.groups for c in g.columns],
         "rows": [{"model": model, "format": fmt,
@@ -227,7 +254,12 @@ def render_json(board: Leaderboard) -> str:
                              "unfinished": c.unfinished, "run_dir": c.run_dir} for c in board.row_cells(i)]}
                  for i, (model, fmt) in enumerate(board.rows)],
         "notes": board.notes,
-    }, indent=2)
+        "key": _key_line(board),
+    }
+
+
+def render_json(board: Leaderboard) -> str:
+    return json.dumps(as_dict(board), indent=2)
 
 
 def render_latex(board: Leaderboard) -> str:

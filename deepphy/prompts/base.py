@@ -188,7 +188,9 @@ def image_digest(png: bytes) -> str:
 def prompt_as_json(messages: list[Message]) -> str:
     """The prompt for the run directory: texts as strings, each image as {"image": its
     digest, "name", "caption"}; the image itself is stored once, at images/<digest>.png.
-    (Runs before content-addressed images held a "<image NAME: CAPTION>" string instead.)"""
+    (Runs before content-addressed images held a "<image NAME: CAPTION>" string instead.)
+    Compact JSON: a run writes a prompt per distinct decision, each naming its history's
+    images again, and indentation was a third of what the references added."""
     out = []
     for m in messages:
         out.append(
@@ -201,5 +203,5 @@ def prompt_as_json(messages: list[Message]) -> str:
                 ],
             }
         )
-    return json.dumps(out, indent=1)
+    return json.dumps(out, separators=(",", ":"))
 

@@ -10,6 +10,7 @@ const PALETTE = ["#7c3aed", "#ea580c", "#0e7490", "#c026d3", "#854d0e", "#4338ca
 
 const S = {
   runs: new Map(),     // id -> view
+  boards: new Map(),   // id -> leaderboard view of a directory of runs
   colors: new Map(),   // id -> colour, stable in order of arrival
   hidden: new Set(),   // ids left out of the charts
   selected: null,      // run whose table and grid are shown
@@ -71,12 +72,15 @@ function connect() {
     const state = JSON.parse(e.data);
     S.runs.clear();
     for (const v of state.runs) { colorOf(v.id); S.runs.set(v.id, v); }
+    S.boards = new Map(state.boards.map((b) => [b.id, b]));
+    renderBoards();
     if (!S.chosen || !S.runs.has(S.selected)) S.selected = firstDetailed();
     renderAll();
     loadGrid();
   });
   es.onmessage = (e) => {
     const msg = JSON.parse(e.data);
+    if (msg.type === "leaderboard") { S.boards.set(msg.board.id, msg.board); renderBoards(); return; }
     if (msg.type !== "run") return;
     const v = msg.run;
     const isNew = !S.runs.has(v.id);
@@ -180,6 +184,39 @@ function renderTable() {
     el("thead", {}, el("tr", {}, header.map((h) => el("th", { text: h })))),
     el("tbody", {}, rows.map((r) => el("tr", {}, r.map((c) => el("td", { text: c })))))),
     key ? el("p", { class: "table-key muted small", text: key }) : null);
+}
+
+// The leaderboard of each directory of runs given: the server's `deepphy leaderboard` table
+// (a column group per environment setting, best of a column in bold, unfinished runs so marked).
+function renderBoards() {
+  const boards = [...S.boards.values()];
+  document.getElementById("boards").hidden = !boards.length;
+  document.getElementById("board-list").replaceChildren(...boards.map(boardNode));
+}
+
+function boardNode(b) {
+  const box = el("div", { class: "board", "data-root": b.path }, el("h3", { text: b.path }));
+  if (!b.board) { box.append(el("p", { class: "error", text: b.error })); return box; }
+  const { columns, rows, key, notes } = b.board;
+  const groups = [];  // consecutive columns of one environment setting
+  for (const c of columns) {
+    const last = groups[groups.length - 1];
+    if (last && last.title === c.title) last.n += 1; else groups.push({ title: c.title, n: 1 });
+  }
+  const head = el("thead", {},
+    el("tr", {}, el("th", {}), groups.map((g) => el("th", { colspan: g.n, text: g.title }))),
+    el("tr", {}, el("th", { text: "setting" }), columns.map((c) => el("th", { title: c.key, text: c.header }))));
+  const cell = (c, column) => el("td", {
+    class: c.best ? "best" : c.unfinished ? "unfinished" : null, "data-column": `${column.title} ${column.header}`,
+    "data-mean": c.mean === null ? "" : c.mean, "data-unfinished": c.unfinished || "", title: c.run_dir || null,
+    text: c.text,
+  });
+  const body = el("tbody", {}, rows.map((r) => el("tr", { "data-model": r.model, "data-format": r.format },
+    el("td", { text: `${r.model} ${r.format.toUpperCase()}` }), r.cells.map((c, j) => cell(c, columns[j])))));
+  box.append(el("div", { class: "table-wrap" }, el("table", { class: "report leaderboard" }, head, body)),
+    el("p", { class: "table-key muted small", text: key.replace("*: best", "bold: best") }),
+    notes.map((n) => el("p", { class: "note", text: `note: ${n}` })));
+  return box;
 }
 
 // -- charts (inline SVG) ---------------------------------------------------------------
