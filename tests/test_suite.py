@@ -150,8 +150,11 @@ def test_cli_errors_are_one_line_before_anything_is_written(suite_file, tmp_path
 def test_dry_run_of_a_suite_prints_every_cell_and_the_total(suite_file, tmp_path, capsys):
     assert main(["run", "--suite", str(suite_file), "--dry-run", "--out", str(tmp_path / "root")]) == 0
     lines = capsys.readouterr().out.splitlines()
-    rows = [line.split()[0] for line in lines[2:7]]
-    assert rows == ["mock/iphyre/vla", "mock/iphyre/wm", "mock/phyre/vla", "mock/phyre/wm", "total"]
+    rows = [line.split() for line in lines[2:7]]
+    assert [r[0] for r in rows] == ["mock/iphyre/vla", "mock/iphyre/wm", "mock/phyre/vla", "mock/phyre/wm", "total"]
+    expected = [int(r[4].replace(",", "")) for r in rows]  # requests~: between the bounds, summed in the total
+    assert all(int(r[3].split("..")[0]) <= e <= int(r[3].split("..")[1]) for r, e in zip(rows, expected))
+    assert expected[4] == sum(expected[:4])
     assert not (tmp_path / "root").exists()
 
 
