@@ -313,6 +313,9 @@ class Interleaved:
                     self.watched.pop(cell.dir, None)
                     self._release_setting(setting_of(cell.config))
                 self._view()
+        except BaseException as e:  # e.g. Ctrl-C outside the wait: the running cells stop before it is raised
+            self._stop(e)
+            raise
         finally:
             pool.shutdown(wait=True)
             for setting in list(self.workers):

@@ -221,3 +221,24 @@ def test_cells_of_one_endpoint_share_its_limiter_and_the_view_shows_its_use(ray_
     said = stream.getvalue()
     assert re.search(rf"^suite small · cells [0-2]/2 .*· local \d+/{rpm} per min \(\d+%\)", said, re.M), said
     assert "cell local/iphyre/vla: 2/2 episodes complete" in said
+
+
+def test_a_failing_cell_stops_the_suite_with_its_error_and_the_same_command_resumes(ray_cluster, tmp_path,
+                                                                                     monkeypatch):
+    import deepphy.runner
+
+    suite = Suite.model_validate({**SMALL, "envs": SMALL["envs"][:1]})
+    evaluate = deepphy.runner.evaluate
+
+    def failing(config, out, *args, **kw):
+        if config.format.value == "wm":
+            raise RuntimeError("disk on fire")
+        return evaluate(config, out, *args, **kw)
+
+    monkeypatch.setattr(deepphy.runner, "evaluate", failing)
+    stream = io.StringIO()
+    with pytest.raises(RuntimeError, match="disk on fire"):
+        run_suite(suite, tmp_path, RUNTIME.model_copy(update={"progress": True}), stream=stream)
+    assert "cell mock/iphyre/wm failed: disk on fire" in stream.getvalue()
+    monkeypatch.setattr(deepphy.runner, "evaluate", evaluate)
+    assert [(o.done, o.total) for o in run_suite(suite, tmp_path, RUNTIME)] == [(2, 2), (2, 2)]
