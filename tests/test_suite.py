@@ -242,3 +242,16 @@ def test_a_failing_cell_stops_the_suite_with_its_error_and_the_same_command_resu
     assert "cell mock/iphyre/wm failed: disk on fire" in stream.getvalue()
     monkeypatch.setattr(deepphy.runner, "evaluate", evaluate)
     assert [(o.done, o.total) for o in run_suite(suite, tmp_path, RUNTIME)] == [(2, 2), (2, 2)]
+
+
+def test_the_suite_line_counts_cells_episodes_rates_endpoints_and_eta():
+    from deepphy.suite import suite_line
+
+    grid = cells(Suite.model_validate(SMALL))
+    progress = {grid[0].dir: (2, 2), grid[1].dir: (1, 2), grid[2].dir: (0, 2), grid[3].dir: (1, 2)}
+    limits = {"gpt-4o": {"requests_in_window": 117, "limits": {"requests_per_min": 120.0}},
+              "local": {"requests_in_window": 3, "limits": {"requests_per_min": None}}}  # no request limit: not shown
+    # 4 of 8 episodes done, 1 of them before this session: 3 in 60 s, so 4 left take 80 s
+    line = suite_line("small", grid, progress, 3, 30, 60.0, 1, limits)
+    assert line == ("suite small · cells 1/4 (3 running) · episodes 4/8 · attempts 30 (0.5/s) · "
+                    "gpt-4o 117/120 per min (98%) · ETA 1m20s · 1m00s")
