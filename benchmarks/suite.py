@@ -2,9 +2,11 @@
 another: wall time of each way, and the records of every cell compared (they must be
 equal, timings and provider facts aside).
 
-The suite runs its cells one after another in one Ray runtime (started once) and the
-cells of one environment setting share its environment workers; separate commands start
-Ray and the workers per cell.
+The suite runs its cells interleaved in one Ray runtime (started once): cells of up to two
+environment settings at once, the cells of one setting sharing its environment workers;
+separate commands start Ray and the workers per cell, one cell after another. Target:
+>= 1.5x faster as a suite on 2 cores. Prints the load (`uptime`) before and after: timings
+on a shared machine depend on it.
 
     uv run python benchmarks/suite.py [SUITE_FILE]   (default: a MOCK suite over the six
                                                       environments, 2 tasks each, VLA and WM, 1 run)
@@ -44,7 +46,12 @@ def timed(argv: list[str]) -> float:
     return time.perf_counter() - start
 
 
+def load() -> str:
+    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+
+
 def main() -> None:
+    print(f"load before: {load()}", flush=True)
     with tempfile.TemporaryDirectory(prefix="deepphy-suite-bench-") as tmp:
         tmp = Path(tmp)
         if len(sys.argv) > 1:
@@ -54,7 +61,7 @@ def main() -> None:
             suite_file.write_text(yaml.safe_dump(DEFAULT))
         grid = cells(load_suite(str(suite_file)))
         suite_s = timed([*DEEPPHY, "run", "--suite", str(suite_file), "--out", str(tmp / "suite"), "--no-progress"])
-        print(f"suite: {len(grid)} cells in one command: {suite_s:.1f} s", flush=True)
+        print(f"suite: {len(grid)} cells in one command: {suite_s:.1f} s (load after: {load()})", flush=True)
         separate_s = 0.0
         for cell in grid:
             c = cell.config
@@ -72,7 +79,7 @@ def main() -> None:
             print(f"  {cell.dir}: {took:.1f} s as its own command; records equal to the suite's: {same}", flush=True)
             assert same, cell.dir
         print(f"separate commands: {separate_s:.1f} s; suite / separate: {suite_s / separate_s:.2f} "
-              f"({separate_s / suite_s:.2f}x faster as a suite)")
+              f"({separate_s / suite_s:.2f}x faster as a suite); load after: {load()}")
 
 
 if __name__ == "__main__":

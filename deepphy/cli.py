@@ -56,6 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="place environment workers only on nodes with this custom Ray resource")
     run.add_argument("--max-in-flight", type=int, default=256, help="episodes in progress at once; default 256")
     run.add_argument("--no-progress", action="store_true", help="no live progress line")
+    run.add_argument("--cell-lines", action="store_true",
+                     help="with --suite: a progress line per running cell too (every 10 s), below the suite's")
     run.add_argument("--dry-run", action="store_true",
                      help="print what the run would ask of its model (requests, images, input tokens measured on the "
                           "rendered prompts of its first tasks, cost, time at the rate limit) without calling it or "
@@ -241,7 +243,7 @@ def run_suite_command(args: argparse.Namespace, runtime: RuntimeOptions) -> int:
             cells = S.cells(suite, models)
             print(render([estimate(c.config, runtime.models_file, label=c.dir) for c in cells]))
             return 0
-        outcomes = S.run_suite(suite, root, runtime, models)
+        outcomes = S.run_suite(suite, root, runtime, models, cell_lines=args.cell_lines)
     except S.SuiteError as e:
         raise UserError(str(e)) from None
     complete = sum(o.done == o.total for o in outcomes)

@@ -10,6 +10,15 @@ request after one earlier decision; the differences are what every further attem
 decision adds. The bounds assume every episode uses all K attempts and all decisions of
 each (a model that solves tasks asks less).
 
+The expected number of requests is what the reference random baseline asks: MOCK (the
+run's seed, run 0) plays the same sampled tasks in-process through the real attempt
+protocol, and its mean requests per episode times the run's episodes is the figure. A
+model that solves more tasks than random asks fewer (down to the lower bound), one that
+never solves asks the upper bound; for most cells the two are close, as random solves
+little. The expected wall time divides the expected requests by the endpoint's
+requests/min; a suite's runs all its endpoints at once, so its figure is the slowest
+endpoint's sum.
+
 Image tokens follow each provider's published rule (IMAGE_TOKEN_RULES, with its source
 and the date it was read); text tokens are estimated as characters / 4 (CHARS_PER_TOKEN),
 the usual rule of thumb for English with these tokenizers: the figure is an estimate,
@@ -112,6 +121,14 @@ class CellEstimate:
     price_known: bool
     rate_limit_min: float | None  # minutes at the endpoint's requests/min for requests_max
     sampled: int
+    requests_expected: float = 0.0  # what the reference random baseline asks (see the module)
+    endpoint: str | None = None  # the endpoint's limiter key (cells of one endpoint share its limit)
+    requests_per_min: float | None = None
+
+    @property
+    def expected_min(self) -> float | None:
+        """Minutes the expected requests take at the endpoint's requests/min."""
+        return self.requests_expected / self.requests_per_min if self.requests_per_min else None
 
 
 @dataclass(frozen=True)
@@ -125,13 +142,48 @@ class TaskPrompts:
 
 
 _measured: dict[str, list[TaskPrompts]] = {}  # the prompts do not depend on the model: a suite measures once
+_baseline: dict[str, list[int]] = {}  # nor does the reference baseline's play
+
+
+def _key(config: RunConfig, sample: int) -> str:
+    return config.model_copy(update={"model": "", "runs": 1}).model_dump_json() + f"/{sample}"
+
+
+def baseline_requests(config: RunConfig, sample: int = DEFAULT_SAMPLE) -> list[int]:
+    """Requests MOCK makes in an episode of each of `config`'s first `sample` tasks (its
+    run 0 at the config's seed), played in-process through `deepphy.protocol.run_attempt`."""
+    import asyncio
+
+    from deepphy.agents import MockModel
+    from deepphy.protocol import LocalEnv, MemoryArtifacts, run_attempt
+    from deepphy.runner import resolve
+    from deepphy.runs.records import episode_finished
+
+    key = _key(config, sample)
+    if key in _baseline:
+        return _baseline[key]
+    spec, tasks, k_max = resolve(config)
+    env_cls = spec.load()
+    env = LocalEnv(env_cls(env_cls.Options(**config.env_options)))
+    mock, prompt, artifacts = MockModel(), spec.load_prompt(), MemoryArtifacts()
+    config = config.model_copy(update={"model": "mock"})
+
+    async def episode(task) -> int:
+        records = []
+        while not episode_finished(records, k_max):
+            records.append(await run_attempt(spec, prompt, config, task, 0, len(records) + 1, records, env, mock,
+                                             artifacts))
+        return sum(r.summary().decisions for r in records)
+
+    _baseline[key] = [asyncio.run(episode(task)) for task in tasks[:sample]]
+    return _baseline[key]
 
 
 def measure(config: RunConfig, sample: int = DEFAULT_SAMPLE) -> list[TaskPrompts]:
     """Render and measure the prompts of `config`'s first `sample` tasks (see the module)."""
     from deepphy.runner import resolve
 
-    key = config.model_copy(update={"model": "", "runs": 1}).model_dump_json() + f"/{sample}"
+    key = _key(config, sample)
     if key in _measured:
         return _measured[key]
     spec, tasks, _ = resolve(config)
@@ -204,6 +256,8 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
     max_tokens = endpoint.max_tokens or config.max_tokens if endpoint is not None else None
     known = endpoint is not None and (endpoint.price.input_per_mtok > 0 or endpoint.price.output_per_mtok > 0)
     input_max = episodes * sum(totals) / n_sampled if rule is not None else None
+    played = baseline_requests(config, sample)
+    rpm = endpoint.rate_limits.requests_per_min if endpoint is not None else None
     return CellEstimate(
         label=label or f"{config.env} {config.model} {config.format.value}",
         episodes=episodes,
@@ -221,9 +275,11 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
         cost_input_max=input_max * endpoint.price.input_per_mtok / 1e6 if known else None,
         cost_output_max=requests_max * max_tokens * endpoint.price.output_per_mtok / 1e6 if known else None,
         price_known=known,
-        rate_limit_min=(requests_max / endpoint.rate_limits.requests_per_min
-                        if endpoint is not None and endpoint.rate_limits.requests_per_min else None),
+        rate_limit_min=requests_max / rpm if rpm else None,
         sampled=n_sampled,
+        requests_expected=episodes * sum(played) / len(played),
+        endpoint=endpoint.limiter_key if endpoint is not None else None,
+        requests_per_min=rpm,
     )
 
 
@@ -244,16 +300,18 @@ def _usd(x: float | None, known: bool, baseline: bool) -> str:
 
 def render(cells: list[CellEstimate]) -> str:
     """A table: a row per run, then the total."""
-    header = ["run", "episodes", "attempts<=", "requests", "images/request", "in tokens/request",
-              "in tokens<=", "in cost<=", "out cost<=", "rate-limit time>="]
+    header = ["run", "episodes", "attempts<=", "requests", "requests~", "images/request", "in tokens/request",
+              "in tokens<=", "in cost<=", "out cost<=", "time~", "time>="]
     rows = []
     for c in cells:
         baseline = c.tokens_first is None
         images = f"{c.images_first:g}..{c.images_max}" + (f" (cap {c.max_images})" if c.max_images is not None else "")
         rows.append([
-            c.label, _n(c.episodes), _n(c.attempts_max), f"{_n(c.requests_min)}..{_n(c.requests_max)}", images,
+            c.label, _n(c.episodes), _n(c.attempts_max), f"{_n(c.requests_min)}..{_n(c.requests_max)}",
+            _n(c.requests_expected), images,
             "-" if baseline else f"{_n(c.tokens_first)}..{_n(c.tokens_max)}", _n(c.input_tokens_max),
             _usd(c.cost_input_max, c.price_known, baseline), _usd(c.cost_output_max, c.price_known, baseline),
+            "-" if c.expected_min is None else _minutes(c.expected_min),
             "-" if c.rate_limit_min is None else _minutes(c.rate_limit_min),
         ])
     if len(cells) > 1:
@@ -262,10 +320,11 @@ def render(cells: list[CellEstimate]) -> str:
         total_in = sum(c.cost_input_max or 0 for c in priced)
         total_out = sum(c.cost_output_max or 0 for c in priced)
         rows.append(["total", _n(sum(c.episodes for c in cells)), _n(sum(c.attempts_max for c in cells)),
-                     f"{_n(sum(c.requests_min for c in cells))}..{_n(sum(c.requests_max for c in cells))}", "", "",
+                     f"{_n(sum(c.requests_min for c in cells))}..{_n(sum(c.requests_max for c in cells))}",
+                     _n(sum(c.requests_expected for c in cells)), "", "",
                      _n(sum(c.input_tokens_max or 0 for c in cells)),
                      f"${total_in:,.2f}" + (" + unknown" if unknown else ""),
-                     f"${total_out:,.2f}" + (" + unknown" if unknown else ""), ""])
+                     f"${total_out:,.2f}" + (" + unknown" if unknown else ""), *suite_time(cells)])
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
     fmt = lambda cells: "  ".join(c.ljust(w) if i == 0 else c.rjust(w)  # noqa: E731
                                   for i, (c, w) in enumerate(zip(cells, widths))).rstrip()
@@ -275,9 +334,27 @@ def render(cells: list[CellEstimate]) -> str:
         f"dry run: no model was called. Prompts measured on the first {'/'.join(map(str, sampled))} task(s) of each "
         "run; bounds assume every attempt and every decision is used; text tokens ~ characters/"
         f"{CHARS_PER_TOKEN}, image tokens by the provider's rule; out cost<= if every reply used max_tokens; "
-        "rate-limit time>=: requests<= at the endpoint's requests/min.",
+        "requests~: what the reference random baseline (MOCK, the run's seed) asks on those tasks, per episode, "
+        "times the episodes (a model that solves more asks fewer); time~ and time>=: requests~ and requests<= at "
+        "the endpoint's requests/min (a suite's total: its slowest endpoint, as endpoints run at once).",
     ])
 
 
+def suite_time(cells: list[CellEstimate]) -> list[str]:
+    """The total row's time~ and time>=: the endpoints run at once, each at its own limit,
+    so a suite takes as long as its slowest endpoint's cells together ("-": no limits)."""
+    expected: dict[str, float] = {}
+    bound: dict[str, float] = {}
+    for c in cells:
+        if c.endpoint is not None and c.requests_per_min:
+            expected[c.endpoint] = expected.get(c.endpoint, 0.0) + c.expected_min
+            bound[c.endpoint] = bound.get(c.endpoint, 0.0) + c.rate_limit_min
+    if not expected:
+        return ["-", "-"]
+    return [_minutes(max(expected.values())), _minutes(max(bound.values()))]
+
+
 def _minutes(m: float) -> str:
+    if m < 10:
+        return f"{m:.1f} min"
     return f"{m:,.0f} min" if m < 120 else f"{m / 60:,.1f} h"

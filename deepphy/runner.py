@@ -57,45 +57,28 @@ class RunOutcome:
         return self.episodes_done == self.episodes_total
 
 
-class EnvWorkerPool:
-    """Environment workers kept from one run to the next in one driver (a suite's cells):
-    a run of the same environment setting (environment and options) as the run before it
-    reuses that run's workers instead of starting processes and importing the simulator
-    again; a run of another setting stops them first (they hold the CPUs its workers
-    need). Their output goes to `log_dir`. `close()` stops them."""
+@dataclass
+class Shared:
+    """What a suite lends a run (`evaluate(shared=...)`), and stops itself when its last
+    cell is done: the environment workers of the run's setting (several cells use them at
+    once) and the endpoints' rate limiters (created by the suite, so one cell ending never
+    kills the limiter another cell of that endpoint is using). `watch(metrics, scheduler)`
+    hears them once the run's actors are up: the suite's progress view reads them, and a
+    suite that stops stops the scheduler."""
 
-    def __init__(self, log_dir: Path) -> None:
-        self.log_dir = Path(log_dir)
-        self.id = uuid.uuid4().hex[:8]
-        self.setting: str | None = None
-        self.workers: list[Any] = []
-        self.started = 0  # settings whose workers were started
+    env_workers: list[Any]
+    watch: Callable[[Any, Any], None] = lambda metrics, scheduler: None
 
-    def get(self, spec: EnvSpec, options: dict[str, Any], runtime: RuntimeOptions, make: Callable[..., Any]) -> list[Any]:
-        import json
 
-        setting = spec.name + json.dumps(options, sort_keys=True)
-        if setting != self.setting:
-            self.close()
-            self.log_dir.mkdir(parents=True, exist_ok=True)
-            n, self.setting, self.started = self.started, setting, self.started + 1
-            self.workers = [
-                make(spec, options, name=f"deepphy/{self.id}/{n}-env{i}", resource=runtime.env_resource,
-                     log_path=str(self.log_dir / f"{n}-{spec.name}-env{i}.log"),
-                     max_concurrency=max(1000, runtime.max_in_flight))
-                for i in range(runtime.env_workers or _default_workers(runtime.env_resource))
-            ]
-        return self.workers
+def make_env_workers(spec: EnvSpec, options: dict[str, Any], runtime: RuntimeOptions, name: str,
+                     log_path: Callable[[int], str], cpus: float = 1.0) -> list[Any]:
+    """The environment workers of one run or suite setting: `runtime.env_workers`, default
+    one per CPU of the nodes that may host them, each asking `cpus` logical CPUs."""
+    from deepphy.actors.env_worker import make_env_worker
 
-    def close(self) -> None:
-        import ray
-
-        for worker in self.workers:
-            try:
-                ray.kill(worker)
-            except Exception:  # noqa: BLE001 - already gone
-                pass
-        self.setting, self.workers = None, []
+    return [make_env_worker(spec, options, name=f"{name}{i}", resource=runtime.env_resource, log_path=log_path(i),
+                            max_concurrency=max(1000, runtime.max_in_flight), num_cpus=cpus)
+            for i in range(runtime.env_workers or _default_workers(runtime.env_resource))]
 
 
 def resolve(config: RunConfig) -> tuple[EnvSpec, list[Task], int]:
@@ -238,11 +221,11 @@ def _probe(host: str, port: int, address: str, timeout_s: float) -> None:
 
 
 def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None = None, *,
-             stream=sys.stderr, env_pool: EnvWorkerPool | None = None) -> RunOutcome:
+             stream=sys.stderr, shared: Shared | None = None) -> RunOutcome:
     """Run (or resume) an evaluation into `out`. Every check that needs no Ray comes first
     and raises ConfigError / RunDirError / the models' errors (unknown model, missing key)
     before Ray starts and without writing anything; a finished run returns at once, without
-    Ray. `env_pool`: take the environment workers from it (and leave them running)."""
+    Ray. `shared`: a suite's environment workers and limiters, used and left running."""
     import ray
 
     runtime = runtime or RuntimeOptions()
@@ -271,7 +254,6 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             view.stop()
         store.discard()
         raise
-    from deepphy.actors.env_worker import make_env_worker
     from deepphy.actors.metrics_actor import make_metrics_actor
     from deepphy.actors.model_worker import make_model_worker
     from deepphy.actors.rate_limiter import ensure_limiter
@@ -291,14 +273,11 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
         if runtime.progress:  # where `deepphy watch` and `deepphy dashboard --address` find this run
             print(f"deepphy: run {status.run_id} on Ray at {status.ray_address}; follow it with "
                   f"`deepphy watch {out}`", file=stream, flush=True)
-        if env_pool is not None:
-            env_workers = env_pool.get(spec, config.env_options, runtime, make_env_worker)
+        if shared is not None:
+            env_workers = shared.env_workers
         else:
-            env_workers = [
-                make_env_worker(spec, config.env_options, name=f"{prefix}/env{i}", resource=runtime.env_resource,
-                                log_path=store.log_path(f"env{i}"), max_concurrency=max(1000, runtime.max_in_flight))
-                for i in range(runtime.env_workers or _default_workers(runtime.env_resource))
-            ]
+            env_workers = make_env_workers(spec, config.env_options, runtime, f"{prefix}/env",
+                                           lambda i: store.log_path(f"env{i}"))
         # The driver owns the endpoint's limiter, so a model worker's restart keeps its windows.
         limiter = ensure_limiter(endpoint) if endpoint is not None else None
         if endpoint is None:  # a random baseline answers in microseconds: no worker, no Ray call
@@ -312,13 +291,15 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             model, model_actors = WorkerModel(worker, shares_files), [worker]
         metrics = make_metrics_actor(total, k_max, spec.max_steps, name=f"{prefix}/metrics", run={
             "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})
-        actors = [*(env_workers if env_pool is None else []), *model_actors, metrics,
-                  *([limiter] if limiter is not None else [])]
+        actors = [*(env_workers if shared is None else []), *model_actors, metrics,
+                  *([limiter] if limiter is not None and shared is None else [])]
         _started(metrics.add.remote([r.summary() for r in existing], resumed=True), "the metrics actor", runtime)
         if view:
             view.stop()
             view = None
         scheduler = Scheduler(config, runtime, spec, tasks, store, env_workers, model, metrics, k_max)
+        if shared is not None:
+            shared.watch(metrics, scheduler)
         asyncio.run(_drive(scheduler, existing, env_workers, metrics, runtime, stream, store.path, status))
         # The run directory, not a live actor, says what is done.
         records = read_records(out)

@@ -11,10 +11,10 @@ root's `suite.json` (the manifest) names every cell and its config.
 Re-running the same command resumes every cell. A suite whose cells changed is refused
 (a cell's config differs, or a cell is gone); one that only adds cells (another model,
 say) extends the manifest. Every cell is checked (options, tasks, models and keys, its
-directory) before Ray starts; the cells then run one after another in ONE Ray runtime,
-started once (not interleaved: each cell has the runtime's CPUs to itself), and the cells
-of one environment setting (consecutive: cells are ordered by setting) share its
-environment workers, started once (their output goes to `ROOT/logs/`).
+directory) before Ray starts; the cells then run interleaved in ONE Ray runtime, started
+once (`Interleaved`: bounded numbers of cells and environment settings at once, the cells
+of one setting sharing its environment workers, the cells of one endpoint its rate
+limiter), with one progress view for the suite.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import itertools
 import json
 import re
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,6 +33,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from deepphy.chat import PromptFormat
 from deepphy.config import RunConfig, RuntimeOptions
+from deepphy.runs.store import _atomic_write
 
 MANIFEST = "suite.json"
 LOGS = "logs"  # the environment workers' output (shared by the cells of one environment setting)
@@ -184,6 +186,13 @@ def plan(suite: Suite, root: str | Path, models: list[str] | None, models_file: 
     return wanted
 
 
+SETTINGS_AT_ONCE = 2  # environment settings whose workers live at once: one simulates while the other's
+# cells wait on their models or compile; each worker asks 1/SETTINGS_AT_ONCE CPU, so together they ask the
+# CPUs one run's workers would (a third setting would add processes and memory for little more overlap)
+CELLS_AT_ONCE = 8  # cells running at once: each has a model worker process and its own episodes in flight
+VIEW_TTY_S, VIEW_LOG_S = 1.0, 10.0  # the suite's progress line: on a terminal, in a log
+
+
 @dataclass
 class CellOutcome:
     cell: Cell
@@ -193,11 +202,11 @@ class CellOutcome:
 
 
 def run_suite(suite: Suite, root: str | Path, runtime: RuntimeOptions, models: list[str] | None = None,
-              stream=sys.stderr) -> list[CellOutcome]:
-    """Run (or resume) every cell of `suite` into `root`, one after another in one Ray
-    runtime (started here unless this process is connected already)."""
-    from deepphy.runner import EnvWorkerPool, ensure_ray, evaluate, episodes_done
-    from deepphy.runs.store import _atomic_write
+              stream=sys.stderr, cell_lines: bool = False) -> list[CellOutcome]:
+    """Run (or resume) every cell of `suite` into `root`, interleaved in one Ray runtime
+    (started here unless this process is connected already), with one progress view
+    (`cell_lines`: a line per running cell too)."""
+    from deepphy.runner import ensure_ray, episodes_done
 
     root = Path(root)
     wanted = plan(suite, root, models, runtime.models_file)
@@ -211,24 +220,245 @@ def run_suite(suite: Suite, root: str | Path, runtime: RuntimeOptions, models: l
         print(f"suite {suite.name}: extended by {added} cell(s)", file=stream, flush=True)
     progress = {c.dir: episodes_done(c.config, root / c.dir) for c in wanted}
     left = [c for c in wanted if progress[c.dir][0] < progress[c.dir][1]]
-    outcomes: list[CellOutcome] = []
-    started = ensure_ray(runtime, lambda line: print(f"{line} ...", file=stream, flush=True)) if left else False
-    pool = EnvWorkerPool(root / LOGS)
-    try:
-        for i, cell in enumerate(wanted, 1):
-            if cell not in left:
-                outcomes.append(CellOutcome(cell, *progress[cell.dir], 0))
-                continue
-            print(f"suite {suite.name}: cell {i}/{len(wanted)} {cell.dir}", file=stream, flush=True)
-            outcome = evaluate(cell.config, root / cell.dir, runtime, stream=stream, env_pool=pool)
-            outcomes.append(CellOutcome(cell, outcome.episodes_done, outcome.episodes_total, outcome.new_records))
-    finally:
-        pool.close()
-        if started:
-            import ray
+    finished = {c.dir: CellOutcome(c, *progress[c.dir], 0) for c in wanted if c not in left}
+    if left:
+        started = ensure_ray(runtime, lambda line: print(f"{line} ...", file=stream, flush=True))
+        try:
+            finished.update(Interleaved(suite.name, root, runtime, wanted, left, progress, stream, cell_lines).run())
+        finally:
+            if started:
+                import ray
 
-            ray.shutdown()
-    return outcomes
+                ray.shutdown()
+    return [finished[c.dir] for c in wanted]
+
+
+def setting_of(config: RunConfig) -> str:
+    """The environment setting of a cell: cells of one setting share environment workers."""
+    return config.env + json.dumps(config.env_options, sort_keys=True)
+
+
+class Interleaved:
+    """Runs a suite's cells at once in this driver, each cell's `evaluate` in a thread of
+    its own (its own scheduler and event loop; Ray calls release the GIL while they wait).
+
+    Bounds: at most SETTINGS_AT_ONCE environment settings have workers (started when their
+    first cell starts, stopped after their last cell ends; cells come in setting order) and
+    at most CELLS_AT_ONCE cells run. The next cell is the first waiting one, among those
+    whose setting has or may get workers, of the endpoint with the fewest cells running, so
+    every endpoint has cells in flight while any are left. The endpoints' limiters are made
+    here and outlive every cell. A cell that fails (or Ctrl-C) stops the suite: no new cell
+    starts, the running ones finish their attempts in flight, then the error is raised."""
+
+    def __init__(self, name: str, root: Path, runtime: RuntimeOptions, wanted: list[Cell], left: list[Cell],
+                 progress: dict[str, tuple[int, int]], stream, cell_lines: bool) -> None:
+        import uuid
+
+        self.name, self.root, self.stream, self.cell_lines = name, root, stream, cell_lines
+        self.show = runtime.progress
+        self.runtime = runtime.model_copy(update={"progress": False})  # this view replaces the cells' own
+        self.wanted, self.waiting = wanted, list(left)
+        self.progress = dict(progress)  # cell -> (episodes done, total): at the start, then as snapshots come
+        self.new_attempts: dict[str, int] = {}
+        self.id = uuid.uuid4().hex[:8]
+        self.workers: dict[str, list[Any]] = {}  # setting -> its environment workers
+        self.settings_started = 0
+        self.running: dict[Any, Cell] = {}  # future -> cell
+        self.watched: dict[str, tuple[Any, Any]] = {}  # cell -> (metrics actor, scheduler)
+        self.limiters: dict[str, Any] = {}  # endpoint key -> its limiter actor
+        self.error: BaseException | None = None
+        self.tty = stream.isatty()
+        self.last_view = self.last_cell_lines = 0.0
+        self.began = self.episodes_at_start = 0.0
+
+    def run(self) -> dict[str, CellOutcome]:
+        import concurrent.futures as cf
+
+        from deepphy.actors.rate_limiter import ensure_limiter
+        from deepphy.agents import endpoint_config
+
+        for cell in self.waiting:
+            endpoint = endpoint_config(cell.config.model, self.runtime.models_file)
+            if endpoint is not None and endpoint.limiter_key not in self.limiters:
+                limiter = ensure_limiter(endpoint)
+                if limiter is not None:
+                    self.limiters[endpoint.limiter_key] = limiter
+        self.began, self.episodes_at_start = time.monotonic(), sum(d for d, _ in self.progress.values())
+        outcomes: dict[str, CellOutcome] = {}
+        pool = cf.ThreadPoolExecutor(max_workers=CELLS_AT_ONCE, thread_name_prefix="deepphy-cell")
+        try:
+            while self.running or (self.waiting and self.error is None):
+                while self.error is None and len(self.running) < CELLS_AT_ONCE and (cell := self._next()):
+                    self.running[pool.submit(self._evaluate, cell)] = cell
+                try:
+                    done, _ = cf.wait(self.running, timeout=VIEW_TTY_S if self.tty else VIEW_LOG_S,
+                                      return_when=cf.FIRST_COMPLETED)
+                except KeyboardInterrupt as e:
+                    self._stop(e)
+                    continue
+                for future in done:
+                    cell = self.running.pop(future)
+                    try:
+                        outcome = future.result()
+                    except BaseException as e:  # noqa: BLE001 - raised once the other cells have stopped
+                        self._stop(e)
+                        self._say(f"cell {cell.dir} failed: {_one_line(str(e)) or type(e).__name__}")
+                    else:
+                        outcomes[cell.dir] = CellOutcome(cell, outcome.episodes_done, outcome.episodes_total,
+                                                         outcome.new_records)
+                        self.progress[cell.dir] = (outcome.episodes_done, outcome.episodes_total)
+                        self.new_attempts[cell.dir] = outcome.new_records
+                        self._say(f"cell {cell.dir}: {outcome.episodes_done}/{outcome.episodes_total} episodes "
+                                  f"complete ({outcome.new_records} new attempt records)")
+                    self.watched.pop(cell.dir, None)
+                    self._release_setting(setting_of(cell.config))
+                self._view()
+        except BaseException as e:  # e.g. Ctrl-C outside the wait: the running cells stop before it is raised
+            self._stop(e)
+            raise
+        finally:
+            pool.shutdown(wait=True)
+            for setting in list(self.workers):
+                self._release_setting(setting, force=True)
+            for limiter in self.limiters.values():
+                _kill(limiter)
+            if self.tty and self.show:
+                self.stream.write("\n")
+                self.stream.flush()
+        if self.error is not None:
+            raise self.error
+        return outcomes
+
+    # -- which cell next, and the workers of its setting ---------------------------------
+
+    def _next(self) -> Cell | None:
+        from deepphy.agents import endpoint_config
+
+        active = set(self.workers)
+        room = len(active) < SETTINGS_AT_ONCE
+        candidates = [c for c in self.waiting if setting_of(c.config) in active]
+        if room:
+            fresh = next((setting_of(c.config) for c in self.waiting if setting_of(c.config) not in active), None)
+            candidates += [c for c in self.waiting if setting_of(c.config) == fresh]
+        if not candidates:
+            return None
+
+        def endpoint(cell: Cell) -> str:
+            config = endpoint_config(cell.config.model, self.runtime.models_file)
+            return config.limiter_key if config is not None else cell.config.model
+
+        busy = [endpoint(c) for c in self.running.values()]
+        cell = min(candidates, key=lambda c: (busy.count(endpoint(c)), self.waiting.index(c)))
+        self.waiting.remove(cell)
+        setting = setting_of(cell.config)
+        if setting not in self.workers:
+            self.workers[setting] = self._start_workers(cell.config)
+        return cell
+
+    def _start_workers(self, config: RunConfig) -> list[Any]:
+        from deepphy.runner import make_env_workers, resolve
+
+        spec = resolve(config)[0]
+        n = self.settings_started
+        self.settings_started += 1
+        (self.root / LOGS).mkdir(parents=True, exist_ok=True)
+        return make_env_workers(spec, config.env_options, self.runtime, f"deepphy/{self.id}/{n}-env",
+                                lambda i: str(self.root / LOGS / f"{n}-{spec.name}-env{i}.log"),
+                                cpus=1 / SETTINGS_AT_ONCE)
+
+    def _release_setting(self, setting: str, force: bool = False) -> None:
+        """Stop a setting's workers once none of its cells runs or waits."""
+        still = any(setting_of(c.config) == setting for c in [*self.waiting, *self.running.values()])
+        if setting in self.workers and (force or not still):
+            for worker in self.workers.pop(setting):
+                _kill(worker)
+
+    def _evaluate(self, cell: Cell):
+        from deepphy.runner import Shared, evaluate
+
+        return evaluate(cell.config, self.root / cell.dir, self.runtime, stream=self.stream,
+                        shared=Shared(self.workers[setting_of(cell.config)], lambda m, s: self._watch(cell, m, s)))
+
+    def _watch(self, cell: Cell, metrics: Any, scheduler: Any) -> None:
+        self.watched[cell.dir] = (metrics, scheduler)
+        if self.error is not None:
+            scheduler.stop_requested = True
+
+    def _stop(self, error: BaseException) -> None:
+        self.error = self.error or error
+        for _, scheduler in list(self.watched.values()):
+            scheduler.stop_requested = True
+
+    # -- the progress view ----------------------------------------------------------------
+
+    def _say(self, line: str) -> None:
+        if not self.show:
+            return
+        self.stream.write(("\r\x1b[2K" if self.tty else "") + line + "\n")
+        self.stream.flush()
+        self.last_view = 0.0  # the suite line again at once, below what was said
+
+    def _view(self) -> None:
+        import ray
+
+        from deepphy.metrics.live import format_progress
+
+        now = time.monotonic()
+        if not self.show or now - self.last_view < (VIEW_TTY_S if self.tty else VIEW_LOG_S) - 0.05:
+            return
+        self.last_view = now
+        watched = dict(self.watched)
+        snaps: dict[str, dict] = {}
+        try:
+            got = ray.get([m.snapshot.remote() for m, _ in watched.values()], timeout=5)
+            snaps = dict(zip(watched, got))
+            limits = dict(zip(self.limiters, ray.get([lim.stats.remote() for lim in self.limiters.values()],
+                                                     timeout=5)))
+        except Exception:  # noqa: BLE001 - progress is best effort
+            return
+        for cell, snap in snaps.items():
+            self.progress[cell] = (snap["episodes_done"], snap["episodes_total"])
+            self.new_attempts[cell] = snap["new_attempts"]
+        line = suite_line(self.name, self.wanted, self.progress, len(self.running), sum(self.new_attempts.values()),
+                          now - self.began, self.episodes_at_start, limits)
+        if self.cell_lines and now - self.last_cell_lines >= VIEW_LOG_S - 0.05:
+            self.last_cell_lines = now
+            for cell, snap in snaps.items():
+                self.stream.write(("\r\x1b[2K" if self.tty else "") + f"  {cell}: {format_progress(snap)}\n")
+        self.stream.write(f"\r\x1b[2K{line}" if self.tty else f"{line}\n")
+        self.stream.flush()
+
+
+def suite_line(name: str, wanted: list[Cell], progress: dict[str, tuple[int, int]], running: int, attempts: int,
+               elapsed_s: float, episodes_at_start: float, limits: dict[str, dict]) -> str:
+    """The suite's progress line: cells done, episodes, attempts/s, each endpoint's
+    requests in its limiter's window against its requests/min, ETA, time taken."""
+    from deepphy.metrics.live import _duration, _rate
+
+    cells_done = sum(progress[c.dir][0] == progress[c.dir][1] for c in wanted)
+    done = sum(progress[c.dir][0] for c in wanted)
+    total = sum(progress[c.dir][1] for c in wanted)
+    parts = [f"suite {name}", f"cells {cells_done}/{len(wanted)}" + (f" ({running} running)" if running else ""),
+             f"episodes {done}/{total}", f"attempts {attempts}" + _rate(attempts / elapsed_s if elapsed_s else None)]
+    for key, stats in limits.items():
+        rpm = stats["limits"].get("requests_per_min")
+        if rpm:
+            used = stats["requests_in_window"]
+            parts.append(f"{key} {used}/{rpm:g} per min ({100 * used / rpm:.0f}%)")
+    new = done - episodes_at_start
+    if new > 0 and done < total:
+        parts.append(f"ETA {_duration((total - done) * elapsed_s / new)}")
+    parts.append(_duration(elapsed_s))
+    return " · ".join(parts)
+
+
+def _kill(actor: Any) -> None:
+    import ray
+
+    try:
+        ray.kill(actor)
+    except Exception:  # noqa: BLE001 - already gone
+        pass
 
 
 def _one_line(text: str) -> str:

@@ -35,6 +35,8 @@ def test_bounds_hold_for_a_real_run(ray_cluster, tmp_path_factory):
     requests = sum(len(r.steps) for r in records)
     assert est.episodes == 12 and est.attempts_max == 120
     assert est.requests_min <= requests <= est.requests_max
+    # expected: MOCK's requests per episode on the sampled tasks (its run 0), which is what this run's 0 asked
+    assert est.requests_expected == pytest.approx(config.runs * sum(len(r.steps) for r in records if r.run == 0))
     images = {}  # prompt digest -> images in it
     for prompt in (run / "prompts").iterdir():
         messages = read_prompt(run, prompt.stem)
@@ -67,8 +69,10 @@ def test_cli_prices_a_models_file_endpoint_that_is_not_listening(tmp_path, capsy
     assert main([*argv, "--model", "priced"]) == 0
     text = capsys.readouterr().out
     row = next(line for line in text.splitlines() if line.startswith("iphyre priced vla"))
-    # 2 episodes x 10 attempts x 1 decision; 20 requests at 60/min
-    assert re.search(r"\b2\s+20\s+2\.\.20\b", row) and "20 min" not in row and row.rstrip().endswith("0 min")
+    # 2 episodes x 10 attempts x 1 decision; 20 requests at 60/min; expected: MOCK's requests on these tasks
+    expected = re.search(r"\b2\s+20\s+2\.\.20\s+(\d+)\s", row)
+    assert expected and 2 <= int(expected[1]) <= 20
+    assert row.rstrip().endswith(f"{int(expected[1]) / 60:.1f} min  0.3 min")
     est = estimate(RunConfig(env="iphyre", model="priced", runs=1, tasks=["support", "hinder"]), str(models))
     assert f"${est.cost_input_max:,.2f}" in row and f"${est.cost_output_max:,.2f}" in row
     assert est.cost_output_max == pytest.approx(20 * 1024 * 15 / 1e6)
@@ -80,3 +84,19 @@ def test_cli_prices_a_models_file_endpoint_that_is_not_listening(tmp_path, capsy
     assert not out.exists()  # nothing written
     assert main([*argv, "--model", "nonesuch"]) == 2
     assert "nonesuch" in capsys.readouterr().err
+
+
+def test_a_suites_expected_time_is_its_slowest_endpoints_sum():
+    from dataclasses import replace
+
+    from deepphy.estimate import render, suite_time
+
+    base = estimate(RunConfig(env="iphyre", model="mock", runs=1, tasks=["support"]))
+    cells = [replace(base, label=f"c{i}", endpoint=e, requests_per_min=rpm, requests_expected=n, requests_max=m,
+                     rate_limit_min=m / rpm)
+             for i, (e, rpm, n, m) in enumerate([("a", 60, 300, 600), ("a", 60, 300, 600), ("b", 120, 900, 1200)])]
+    # a: 600 expected at 60/min = 10 min (bound 20); b: 900 at 120/min = 7.5 min (bound 10)
+    assert suite_time(cells) == ["10 min", "20 min"]
+    total = next(line for line in render(cells).splitlines() if line.startswith("total"))
+    assert total.endswith("10 min  20 min")
+    assert suite_time([base]) == ["-", "-"]  # a baseline has no limit

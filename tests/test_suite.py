@@ -1,11 +1,14 @@
 """Suites (`deepphy run --suite`): a cell per environment setting x model x format, each an
 ordinary run directory under the suite root, run in one Ray runtime, resumed as a whole."""
 
+import io
 import json
 import os
+import re
 import signal
 import subprocess
 import time
+from pathlib import Path
 
 import pytest
 import yaml
@@ -13,6 +16,7 @@ import yaml
 from deepphy.cli import main
 from deepphy.config import RuntimeOptions
 from deepphy.metrics.report import report_of
+from deepphy.runner import evaluate
 from deepphy.runs.store import ATTEMPTS, read_config, read_records
 from deepphy.suite import MANIFEST, Suite, SuiteError, cells, load_suite, plan, read_manifest, run_suite
 
@@ -49,13 +53,39 @@ def suite_file(tmp_path_factory):
     return path
 
 
+SPANS: dict[str, tuple[float, float]] = {}  # cell -> (start, end) of its evaluate in the `done` suite
+
+
 @pytest.fixture(scope="module")
 def done(ray_cluster, suite_file, tmp_path_factory):
-    """The small suite, run once without interruption in the session's Ray runtime."""
+    """The small suite, run once without interruption in the session's Ray runtime (each
+    cell's evaluate timed, in SPANS)."""
+    import deepphy.runner
+
     root = tmp_path_factory.mktemp("suite") / "root"
-    outcomes = run_suite(load_suite(str(suite_file)), root, RUNTIME)
+    evaluate = deepphy.runner.evaluate
+
+    def timed(config, out, *args, **kw):
+        start = time.monotonic()
+        try:
+            return evaluate(config, out, *args, **kw)
+        finally:
+            SPANS[str(Path(out).relative_to(root))] = (start, time.monotonic())
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(deepphy.runner, "evaluate", timed)
+        outcomes = run_suite(load_suite(str(suite_file)), root, RUNTIME)
     assert [(o.done, o.total) for o in outcomes] == [(2, 2)] * 2 + [(2, 2)] * 2
     return root
+
+
+def test_cells_run_at_once_and_record_what_each_records_alone(done, tmp_path):
+    # Two settings (I-PHYRE, PHYRE) x two formats: all four cells start before any ends.
+    assert sorted(SPANS) == [c.dir for c in read_manifest(done)]
+    assert max(start for start, _ in SPANS.values()) < min(end for _, end in SPANS.values())
+    cell = read_manifest(done)[3]  # mock/phyre/wm, run alone (its own workers and Ray calls)
+    assert evaluate(cell.config, tmp_path / "alone", RUNTIME).complete
+    assert views(tmp_path / "alone") == views(done / cell.dir)
 
 
 def test_every_cell_is_a_run_directory_named_by_the_manifest(done):
@@ -120,8 +150,11 @@ def test_cli_errors_are_one_line_before_anything_is_written(suite_file, tmp_path
 def test_dry_run_of_a_suite_prints_every_cell_and_the_total(suite_file, tmp_path, capsys):
     assert main(["run", "--suite", str(suite_file), "--dry-run", "--out", str(tmp_path / "root")]) == 0
     lines = capsys.readouterr().out.splitlines()
-    rows = [line.split()[0] for line in lines[2:7]]
-    assert rows == ["mock/iphyre/vla", "mock/iphyre/wm", "mock/phyre/vla", "mock/phyre/wm", "total"]
+    rows = [line.split() for line in lines[2:7]]
+    assert [r[0] for r in rows] == ["mock/iphyre/vla", "mock/iphyre/wm", "mock/phyre/vla", "mock/phyre/wm", "total"]
+    expected = [int(r[4].replace(",", "")) for r in rows]  # requests~: between the bounds, summed in the total
+    assert all(int(r[3].split("..")[0]) <= e <= int(r[3].split("..")[1]) for r, e in zip(rows, expected))
+    assert expected[4] == sum(expected[:4])
     assert not (tmp_path / "root").exists()
 
 
@@ -132,13 +165,15 @@ def test_a_killed_suite_resumes_to_the_records_of_an_uninterrupted_one(done, sui
     proc = subprocess.Popen([*deepphy_cmd, "run", "--suite", str(suite_file), "--out", str(root), "--address",
                              ray_cluster, "--no-progress", "--env-workers", "2"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    log = root / "mock" / "iphyre" / "wm" / ATTEMPTS  # the second cell: kill it there
+    logs = [root / cell.dir / ATTEMPTS for cell in read_manifest(done)]  # kill it once a cell has records
     deadline = time.time() + 300
-    while proc.poll() is None and time.time() < deadline and not (log.exists() and log.stat().st_size):
+    while proc.poll() is None and time.time() < deadline and not any(p.exists() and p.stat().st_size for p in logs):
         time.sleep(0.05)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait(timeout=30)
-    assert log.exists() and not (root / "mock" / "phyre" / "wm").exists(), "the suite was not killed mid-way"
+    lines = [p.read_bytes().count(b"\n") if p.exists() else 0 for p in logs]
+    assert any(lines) and lines != [len(read_records(done / c.dir)) for c in read_manifest(done)], \
+        "the suite was not killed mid-way"
     outcomes = run_suite(Suite.model_validate(SMALL), root, RUNTIME)
     assert sum(o.new_records for o in outcomes) > 0
     for cell in read_manifest(done):
@@ -159,3 +194,64 @@ def test_plot_of_a_suite_root_draws_every_environment(done, tmp_path, capsys):
     data = json.loads((tmp_path / "fig" / "figures.json").read_text())
     assert {"cumulative_iphyre", "cumulative_phyre"} <= set(data)
     assert data["cumulative_phyre"]["labels"] == ["mock VLA", "mock WM"]
+
+
+def test_cells_of_one_endpoint_share_its_limiter_and_the_view_shows_its_use(ray_cluster, tmp_path):
+    """Two cells at once on one endpoint (the local model server) limited to 240 requests/min:
+    the server sees them paced as ONE stream at that rate (two limiters would let twice as
+    many through), and the suite's progress line shows the endpoint's use of its limit."""
+    from deepphy.testing.model_server import ServerConfig, ServerThread
+
+    rpm = 240
+    with ServerThread(ServerConfig(seed=3)) as server:
+        models = tmp_path / "models.yaml"
+        models.write_text(yaml.safe_dump({"models": [{
+            "name": "local", "provider": "openai", "model": "deepphy-mock", "base_url": server.url + "/v1",
+            "send_context": True, "rate_limits": {"requests_per_min": rpm}}]}))
+        suite = Suite.model_validate({**SMALL, "envs": [{"env": "iphyre", "tasks": ["support", "hinder"],
+                                                         "max_attempts": 6}], "models": ["local"]})
+        stream = io.StringIO()
+        runtime = RUNTIME.model_copy(update={"models_file": str(models), "progress": True})
+        outcomes = run_suite(suite, tmp_path / "root", runtime, stream=stream)
+        arrivals = sorted(server.stats()["arrivals"])
+    assert [(o.done, o.total) for o in outcomes] == [(2, 2), (2, 2)]
+    assert len(arrivals) == sum(len(read_records(tmp_path / "root" / o.cell.dir)) for o in outcomes) >= 12
+    interval = (60 + 1.0) / rpm  # the limiter's pacing (its window is 60 s + a 1 s margin)
+    assert len(arrivals) - 1 <= (arrivals[-1] - arrivals[0]) / interval + 2, "more than one stream's rate"
+    said = stream.getvalue()
+    assert re.search(rf"^suite small · cells [0-2]/2 .*· local \d+/{rpm} per min \(\d+%\)", said, re.M), said
+    assert "cell local/iphyre/vla: 2/2 episodes complete" in said
+
+
+def test_a_failing_cell_stops_the_suite_with_its_error_and_the_same_command_resumes(ray_cluster, tmp_path,
+                                                                                     monkeypatch):
+    import deepphy.runner
+
+    suite = Suite.model_validate({**SMALL, "envs": SMALL["envs"][:1]})
+    evaluate = deepphy.runner.evaluate
+
+    def failing(config, out, *args, **kw):
+        if config.format.value == "wm":
+            raise RuntimeError("disk on fire")
+        return evaluate(config, out, *args, **kw)
+
+    monkeypatch.setattr(deepphy.runner, "evaluate", failing)
+    stream = io.StringIO()
+    with pytest.raises(RuntimeError, match="disk on fire"):
+        run_suite(suite, tmp_path, RUNTIME.model_copy(update={"progress": True}), stream=stream)
+    assert "cell mock/iphyre/wm failed: disk on fire" in stream.getvalue()
+    monkeypatch.setattr(deepphy.runner, "evaluate", evaluate)
+    assert [(o.done, o.total) for o in run_suite(suite, tmp_path, RUNTIME)] == [(2, 2), (2, 2)]
+
+
+def test_the_suite_line_counts_cells_episodes_rates_endpoints_and_eta():
+    from deepphy.suite import suite_line
+
+    grid = cells(Suite.model_validate(SMALL))
+    progress = {grid[0].dir: (2, 2), grid[1].dir: (1, 2), grid[2].dir: (0, 2), grid[3].dir: (1, 2)}
+    limits = {"gpt-4o": {"requests_in_window": 117, "limits": {"requests_per_min": 120.0}},
+              "local": {"requests_in_window": 3, "limits": {"requests_per_min": None}}}  # no request limit: not shown
+    # 4 of 8 episodes done, 1 of them before this session: 3 in 60 s, so 4 left take 80 s
+    line = suite_line("small", grid, progress, 3, 30, 60.0, 1, limits)
+    assert line == ("suite small · cells 1/4 (3 running) · episodes 4/8 · attempts 30 (0.5/s) · "
+                    "gpt-4o 117/120 per min (98%) · ETA 1m20s · 1m00s")

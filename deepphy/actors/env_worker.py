@@ -116,15 +116,16 @@ def _redirect_output(log_path: str | None) -> None:
 
 def make_env_worker(spec: EnvSpec, options: dict[str, Any], *, name: str | None = None,
                     resource: str | None = None, log_path: str | None = None, max_restarts: int = 5,
-                    max_concurrency: int = 1000):
-    """An EnvWorker actor handle: one logical CPU, restarted if its process (or its node)
+                    max_concurrency: int = 1000, num_cpus: float = 1.0):
+    """An EnvWorker actor handle: one logical CPU (`num_cpus`: a suite's settings running
+    at once share the CPUs), restarted if its process (or its node)
     dies, spread over the cluster's nodes.
 
     `resource` places it only on nodes that declare that custom resource (e.g. `physics`);
     a token amount is asked so CPUs, not the resource, bound the number of workers."""
     resources = {resource: 0.001} if resource else None
     return EnvWorker.options(
-        num_cpus=1, max_restarts=max_restarts, max_concurrency=max_concurrency, name=name, resources=resources,
+        num_cpus=num_cpus, max_restarts=max_restarts, max_concurrency=max_concurrency, name=name, resources=resources,
         scheduling_strategy="SPREAD",
     ).remote(spec, options, log_path)
 
