@@ -71,4 +71,7 @@ USER deepphy
 WORKDIR /data
 # The build fails here if the installed harness cannot list its environments.
 RUN deepphy envs
+# The compile caches (Pooltool's numba kernels, Kinetix's JAX functions: minutes) filled in
+# the image, as the runtime user: a container's or a cluster node's first run loads them.
+RUN python -m deepphy.warm_up
 CMD ["deepphy", "--help"]

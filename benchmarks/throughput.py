@@ -5,7 +5,7 @@ same attempt protocol (`deepphy.protocol.run_attempt`: prompts, MOCK's decisions
 the environment calls) writing the same run directory (records, prompts, key frames).
 Both runs must produce the same records.
 
-    uv run python benchmarks/throughput.py [--env iphyre] [--runs 3] [--limit N]
+    uv run python benchmarks/throughput.py [--env iphyre] [--runs 3] [--limit N] [--quick]
 """
 
 from __future__ import annotations
@@ -51,7 +51,10 @@ def main() -> None:
     p.add_argument("--limit", type=int)
     p.add_argument("--num-cpus", type=int, default=2)
     p.add_argument("--model", default="mock", help="a random baseline (mock, mock-uniform)")
+    p.add_argument("--quick", action="store_true", help="one run of the first 20 tasks (under 3 minutes)")
     args = p.parse_args()
+    if args.quick:
+        args.runs, args.limit = 1, args.limit or 20
     config = RunConfig(env=args.env, runs=args.runs, limit=args.limit, model=args.model)
 
     with tempfile.TemporaryDirectory() as plain_out, tempfile.TemporaryDirectory() as out:

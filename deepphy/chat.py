@@ -14,6 +14,13 @@ import cv2
 import numpy as np
 from pydantic import BaseModel, ConfigDict, model_validator
 
+# PNG encoding: deflate level 3 with no row filter. Encoding was the largest part of an
+# I-PHYRE attempt's CPU (level 6 with libpng's adaptive filters: 11 ms per 600x600 image,
+# 15 ms per Pooltool table); this takes 2-3 ms for files 0-60% larger (Pooltool 30 KiB as
+# before, I-PHYRE 11 KiB instead of 7; benchmarks/cpu_per_attempt.py). Our renderings are
+# flat colours, which the filters only make harder to compress. The pixels are identical.
+PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 3, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE]
+
 
 class Image(BaseModel):
     """A named RGB image, PNG-encoded once where it is rendered. `caption` says what it
@@ -49,10 +56,8 @@ class Image(BaseModel):
 
     @classmethod
     def from_array(cls, name: str, caption: str, rgb: np.ndarray) -> "Image":
-        # Level 6: ~40% smaller than OpenCV's default 1 for ~1 ms more; run directories hold
-        # tens of thousands of these key frames.
         bgr = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR)
-        ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 6])
+        ok, buf = cv2.imencode(".png", bgr, PNG_PARAMS)
         if not ok:
             raise ValueError(f"could not encode image {name!r}")
         return cls(name=name, caption=caption, png=buf.tobytes())

@@ -8,10 +8,13 @@
   modules, and the raylet aborts ("The current node timed out during startup").
 
 So every port Ray's agents open is chosen here, free, before the start (`ray.init` takes no
-such options; `_agent_ports` hands them to the RayParams it builds), and the dashboard
+such options; `_ray_params` hands them to the RayParams it builds), and the dashboard
 agent's HTTP port, which the raylet only reads to report it, is written to the session's
 port file as soon as the session exists (the agent writes the same number once it is up).
 A start that still fails is retried with fresh ports; its processes are stopped first.
+
+The autoscaler's monitor is not started: a local instance has a fixed size, and on a
+2-core machine its start (one more process importing Ray) delays the first attempt.
 """
 
 from __future__ import annotations
@@ -65,17 +68,17 @@ def free_ports(host: str, n: int) -> list[int]:
 
 
 @contextlib.contextmanager
-def _agent_ports(ports: dict[str, int]):
+def _ray_params(fields: dict):
     """`ray.init(address="local")` with these RayParams fields set (it has no options for them)."""
     import ray._private.parameter as parameter
 
     original = parameter.RayParams
 
-    class WithPorts(original):  # type: ignore[misc, valid-type]
+    class WithFields(original):  # type: ignore[misc, valid-type]
         def __init__(self, **kwargs):
-            super().__init__(**{**kwargs, **ports})
+            super().__init__(**{**kwargs, **fields})
 
-    parameter.RayParams = WithPorts
+    parameter.RayParams = WithFields
     try:
         yield
     finally:
@@ -131,8 +134,9 @@ def start(num_cpus: int, node_ip: str, say: Callable[[str], None] = lambda _: No
         writer.start()
         os.environ.setdefault("RAY_gcs_server_port_wait_time_s", str(int(SESSION_WAIT_S)))
         try:
-            with _agent_ports({"dashboard_agent_listen_port": agent, "metrics_agent_port": metrics,
-                               "runtime_env_agent_port": runtime_env, "metrics_export_port": export}):
+            with _ray_params({"dashboard_agent_listen_port": agent, "metrics_agent_port": metrics,
+                              "runtime_env_agent_port": runtime_env, "metrics_export_port": export,
+                              "no_monitor": True}):
                 ray.init(address="local", num_cpus=num_cpus, _node_ip_address=node_ip,
                          _system_config={"worker_register_timeout_seconds": WORKER_REGISTER_TIMEOUT_S,
                                                 "enable_metrics_collection": False},

@@ -102,3 +102,11 @@ def test_an_attempt_that_raises_is_isolated_logged_and_retried_on_resume(ray_clu
         assert {r.task for r in read_records(run_dir) if r.task == "flag-05"} == {"flag-05"}
     finally:
         unregister("explodes")
+
+
+def test_the_install_time_warm_up_covers_the_environments_that_compile():
+    """`make setup` and the Docker image run `python -m deepphy.warm_up`, which fills the
+    compile caches of the environments that have a warm-up of their own (and only those)."""
+    from deepphy.warm_up import compiling_envs
+
+    assert compiling_envs() == ["kinetix", "pooltool"]

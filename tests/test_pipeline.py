@@ -234,3 +234,21 @@ def test_earlier_frames_reach_the_model_as_stored(ray_cluster, tmp_path):
         assert sent[:len(stored)] == stored and len(sent) > len(stored)
         checked += len(stored) > 0
     assert checked >= 3  # requests that carried earlier attempts' frames (4 with this seed)
+
+
+@pytest.mark.parametrize("setting, packages", [(None, False), ("1", True)])
+def test_a_run_does_not_package_the_working_directory_even_if_ray_was_imported_first(monkeypatch, setting, packages):
+    """Under `uv run`, Ray uploads the working directory to its workers unless
+    RAY_ENABLE_UV_RUN_RUNTIME_ENV is off, and it reads that variable when it is imported (a
+    script importing deepphy.runner imports Ray first). A user's explicit setting stands."""
+    from ray._private import ray_constants
+
+    from deepphy.runner import quiet_environment
+
+    if setting is None:
+        monkeypatch.delenv("RAY_ENABLE_UV_RUN_RUNTIME_ENV", raising=False)
+    else:
+        monkeypatch.setenv("RAY_ENABLE_UV_RUN_RUNTIME_ENV", setting)
+    monkeypatch.setattr(ray_constants, "RAY_ENABLE_UV_RUN_RUNTIME_ENV", not packages)  # as read at import
+    quiet_environment()
+    assert ray_constants.RAY_ENABLE_UV_RUN_RUNTIME_ENV is packages

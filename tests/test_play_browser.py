@@ -149,6 +149,8 @@ def drive_cuttherope(page, text: str) -> None:
         where = re.search(rf"\b{letter}{first} (?:at )?\((-?[\d.]+), (-?[\d.]+)\)", "\n".join(
             p["text"] for p in decision(page)["observation"] if "text" in p))
         if where:
+            # the scene's size once its image has loaded (a new decision's image loads after its text)
+            page.wait_for_function("() => document.querySelector('img[data-image=scene]')?.naturalWidth > 0")
             size = page.evaluate("() => { const i = document.querySelector('img[data-image=scene]'); "
                                  "return [i.naturalWidth, i.naturalHeight]; }")
             click_fraction(page, "canvas[data-image=scene]", float(where[1]) / size[0], float(where[2]) / size[1])

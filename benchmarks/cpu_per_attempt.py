@@ -1,0 +1,241 @@
+"""CPU per attempt: everything a `deepphy run` spends vs the environment's own work.
+
+For each environment (MOCK, a local 2-CPU Ray), two measurements of the same attempts:
+
+1. The environment's own work, in this process: the very attempts of the run (the same
+   config and seed, `deepphy.protocol.run_attempt` over the environment in-process), with
+   the CPU time (`time.process_time`) of every `reset`/`step` split into its stages:
+   render (the environment's drawing functions, below), encode (`Image.from_array`: the
+   colour conversion and PNG) and simulate (the rest of reset/step).
+2. The real run: `deepphy run` in a subprocess, its processes sampled (psutil) until it
+   exits: the driver, the watchdog, Ray's actors (environment workers, model worker,
+   metrics actor) and Ray's own processes (GCS, raylet, agents, idle workers). CPU is
+   counted between the first and the last record written (the steady state: start-up is
+   `benchmarks/first_result.py`'s subject), per attempt recorded in that window.
+
+The ratio printed is (2) / (1): the target of issue 25 is <= 1.15.
+
+    .venv/bin/python benchmarks/cpu_per_attempt.py [--envs iphyre,phyre,pooltool] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import importlib
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from contextlib import contextmanager
+
+import psutil
+
+from deepphy.chat import Image
+from deepphy.config import RunConfig
+from deepphy.protocol import MemoryArtifacts, run_attempt
+from deepphy.runner import resolve
+from deepphy.runs.records import episode_finished
+
+# The drawing functions of each environment (module, attribute path): their CPU is "render".
+RENDERERS = {
+    "iphyre": [("deepphy.envs.iphyre.env", "IPhyreEnv.render"), ("deepphy.envs.iphyre.env", "stack_frames")],
+    "phyre": [("deepphy.envs.phyre.env", "render"), ("deepphy.envs.phyre.env", "stack_frames"),
+              ("deepphy.envs.phyre.env", "draw_grid"), ("deepphy.envs.phyre.env", "draw_axes")],
+    "pooltool": [("deepphy.envs.pooltool.env", "render_table"), ("deepphy.envs.pooltool.env", "_traces")],
+}
+# (runs, task limit) per environment: full and --quick sizes (a few hundred attempts; fewer for
+# the slow simulators).
+SIZES = {"iphyre": ((5, 40), (2, 40)), "phyre": ((1, 100), (1, 30)), "pooltool": ((1, 40), (1, 12))}
+SAMPLE_S = 0.25
+
+
+class StageClock:
+    """CPU seconds per stage; a stage entered inside another timed stage is not counted twice."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = defaultdict(float)
+        self.depth = 0
+
+    @contextmanager
+    def stage(self, name: str):
+        if self.depth:
+            yield
+            return
+        self.depth += 1
+        t0 = time.process_time()
+        try:
+            yield
+        finally:
+            self.seconds[name] += time.process_time() - t0
+            self.depth -= 1
+
+    def wrap(self, name: str, fn):
+        def timed(*args, **kwargs):
+            with self.stage(name):
+                return fn(*args, **kwargs)
+        return timed
+
+
+@contextmanager
+def instrumented(env: str, clock: StageClock):
+    """The environment's drawing functions and the PNG encoder, timed while inside."""
+    patches = []
+    for module, path in RENDERERS[env]:
+        owner = importlib.import_module(module)
+        *parents, attr = path.split(".")
+        for p in parents:
+            owner = getattr(owner, p)
+        patches.append((owner, attr, owner.__dict__[attr]))
+    patches.append((Image, "from_array", Image.__dict__["from_array"]))
+    try:
+        for owner, attr, original in patches[:-1]:
+            setattr(owner, attr, clock.wrap("render", original))
+        encode = Image.__dict__["from_array"].__func__
+        Image.from_array = classmethod(clock.wrap("encode", encode))
+        yield
+    finally:
+        for owner, attr, original in patches:
+            setattr(owner, attr, original)
+
+
+class TimedEnv:
+    """A protocol EnvHandle over an in-process environment, timing every call."""
+
+    def __init__(self, env, clock: StageClock) -> None:
+        self.env, self.clock, self.seconds = env, clock, 0.0
+
+    async def reset(self, task):
+        return self._timed(self.env.reset, task)
+
+    async def step(self, action):
+        return self._timed(self.env.step, action)
+
+    def _timed(self, fn, arg):
+        render, encode = self.clock.seconds["render"], self.clock.seconds["encode"]
+        t0 = time.process_time()
+        out = fn(arg)
+        spent = time.process_time() - t0
+        self.seconds += spent
+        self.clock.seconds["simulate"] += spent - (self.clock.seconds["render"] - render) - (
+            self.clock.seconds["encode"] - encode)
+        return out
+
+
+async def env_work(config: RunConfig) -> tuple[int, dict[str, float], float]:
+    """(attempts, CPU seconds per stage, CPU of the whole in-process loop) for the run's attempts."""
+    from deepphy.agents import make_agent
+
+    spec, tasks, k_max = resolve(config)
+    cls = spec.load()
+    options = cls.Options(**config.env_options)
+    cls.warm_up(options, tasks)
+    clock = StageClock()
+    env = TimedEnv(cls(options), clock)
+    prompt, model, store = spec.load_prompt(), make_agent(config.model), MemoryArtifacts()
+    attempts = 0
+    t0 = time.process_time()
+    with instrumented(config.env, clock):
+        for run in range(config.runs):
+            for task in tasks:
+                records = []
+                while not episode_finished(records, k_max):
+                    records.append(await run_attempt(spec, prompt, config, task, run, len(records) + 1, records,
+                                                     env, model, store))
+                attempts += len(records)
+    return attempts, dict(clock.seconds), time.process_time() - t0
+
+
+def role(proc: psutil.Process, driver: int) -> str:
+    if proc.pid == driver:
+        return "driver"
+    cmd = " ".join(proc.cmdline())
+    for marker, name in (("deepphy.reaper", "watchdog"), ("ray::EnvWorker", "env workers"),
+                         ("ray::ModelWorker", "model worker"), ("ray::MetricsImpl", "metrics actor")):
+        if marker in cmd:
+            return name
+    return "Ray's own"
+
+
+def pipeline(config: RunConfig, out: str) -> tuple[int, dict[str, float], float]:
+    """(attempts in the steady-state window, CPU seconds per role in it, window seconds)."""
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    cmd = [sys.executable, "-m", "deepphy.cli", "run", "--env", config.env, "--model", config.model,
+           "--runs", str(config.runs), "--limit", str(config.limit), "--out", out, "--no-progress"]
+    driver = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
+    records = os.path.join(out, "attempts.jsonl")
+    seen: dict[int, tuple[str, float]] = {}  # pid -> (role, CPU seconds at the last sample)
+    first: tuple[int, dict[int, float], float] | None = None  # (records, CPU per pid, time) at the window's start
+    last: tuple[int, dict[int, float], float] | None = None  # the same, at the last sample that saw a new record
+    roles: dict[int, str] = {}
+    while driver.poll() is None:
+        try:
+            family = [psutil.Process(driver.pid), *psutil.Process(driver.pid).children(recursive=True)]
+        except psutil.Error:
+            break
+        cpu = {}
+        for p in family:
+            try:
+                if p.pid not in roles or roles[p.pid] == "Ray's own":  # a worker takes its actor's name late
+                    roles[p.pid] = role(p, driver.pid)
+                t = p.cpu_times()
+                cpu[p.pid] = t.user + t.system
+            except psutil.Error:
+                continue
+        for pid, c in cpu.items():
+            seen[pid] = (roles[pid], c)
+        try:
+            with open(records, "rb") as f:
+                n = f.read().count(b"\n")
+        except OSError:
+            n = 0
+        now = time.monotonic()
+        if n and first is None:
+            first = (n, {pid: c for pid, (_, c) in seen.items()}, now)
+        if first is not None and (last is None or n > last[0]):
+            last = (n, {pid: c for pid, (_, c) in seen.items()}, now)
+        time.sleep(SAMPLE_S)
+    if driver.wait() != 0:
+        sys.exit(f"the run failed: {driver.stderr.read().decode()[-2000:]}")
+    if first is None or last is None or last[0] <= first[0]:
+        sys.exit("too few records were sampled for a steady-state window (raise the size)")
+    per_role: dict[str, float] = defaultdict(float)
+    for pid, c in last[1].items():
+        per_role[seen[pid][0]] += c - first[1].get(pid, 0.0)
+    return last[0] - first[0], dict(per_role), last[2] - first[2]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--envs", default="iphyre,phyre,pooltool")
+    ap.add_argument("--quick", action="store_true", help="fewer attempts (the whole script in < 3 min)")
+    a = ap.parse_args()
+    print(f"load {os.getloadavg()[0]:.2f} (1-min) at the start, {psutil.cpu_count()} CPUs")
+    rows = []
+    for name in a.envs.split(","):
+        runs, limit = SIZES[name][1 if a.quick else 0]
+        config = RunConfig(env=name, model="mock", runs=runs, limit=limit)
+        attempts, stages, loop_cpu = asyncio.run(env_work(config))
+        work = sum(stages.values()) / attempts
+        with tempfile.TemporaryDirectory(prefix="dpcpu") as tmp:
+            n, roles, window = pipeline(config, os.path.join(tmp, "run"))
+        total = sum(roles.values()) / n
+        print(f"\n{name}: {attempts} attempts in-process; run window {n} attempts in {window:.1f} s")
+        print("  environment's own work per attempt (in-process): " + ", ".join(
+            f"{s} {stages.get(s, 0.0) / attempts * 1000:.1f} ms" for s in ("simulate", "render", "encode"))
+            + f" = {work * 1000:.1f} ms  (the whole in-process loop: {loop_cpu / attempts * 1000:.1f} ms)")
+        print("  the run's CPU per attempt, by process: " + ", ".join(
+            f"{r} {c / n * 1000:.1f} ms" for r, c in sorted(roles.items(), key=lambda kv: -kv[1]))
+            + f" = {total * 1000:.1f} ms")
+        print(f"  ratio run / environment work: {total / work:.2f}x (target <= 1.15x)")
+        rows.append((name, work, total))
+    print("\nsummary (ms per attempt): env  work  run  ratio")
+    for name, work, total in rows:
+        print(f"  {name:9s} {work * 1000:6.1f} {total * 1000:6.1f} {total / work:5.2f}x")
+    print(f"load {os.getloadavg()[0]:.2f} (1-min) at the end")
+
+
+if __name__ == "__main__":
+    main()
