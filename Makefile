@@ -2,15 +2,18 @@
 UV := python3 -m uv
 PYTEST_ARGS ?= -m "not slow"
 
-.PHONY: demo test test-all setup
+.PHONY: demo test test-all setup install
 
 # Bytecode compiled at install: every Ray worker process imports Ray and the simulators, at
 # half the CPU with .pyc files (which PYTHONDONTWRITEBYTECODE=1 would never let Python write).
 # Then the compile caches (Pooltool, Kinetix: minutes, once per machine and uv.lock), so no
-# first run waits for them; .venv/.warm-up records that it was done.
-setup:
+# first run waits for them; .venv/.warm-up records that it was done. The demo (I-PHYRE, which
+# compiles nothing) needs only the install, so its first run does not wait for the warm-up.
+install:
 	@$(UV) --version >/dev/null 2>&1 || python3 -m pip install -q uv
 	@$(UV) sync --frozen -q --compile-bytecode
+
+setup: install
 	@$(MAKE) -s .venv/.warm-up
 
 .venv/.warm-up: uv.lock
@@ -18,7 +21,7 @@ setup:
 	@touch $@
 
 # The main job: all 40 I-PHYRE games x 3 runs with MOCK on a local 2-CPU Ray, then the report.
-demo: setup
+demo: install
 	$(UV) run --frozen deepphy run --env iphyre --model mock --format vla --runs 3 --out runs/demo
 	$(UV) run --frozen deepphy report runs/demo
 
