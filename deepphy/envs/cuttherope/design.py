@@ -158,10 +158,11 @@ BOX1: list[Level] = [
          candies=[(140, 520)], bubbles=[{"pos": (140, 520)}], ropes=[rope(60, 640), rope(340, 660)],
          om_nom=(330, 100), stars=[(215, 458), (300, 360), (310, 230)]),
     make("b1_l07", "Pop it over Om Nom",
-         "Om Nom waits below, the stars are above: let the bubble lift the candy through them, then pop it and the "
-         "candy falls all the way down to him.",
-         candies=[(170, 260)], ropes=[rope(170, 150)], bubbles=[{"pos": (170, 360)}], om_nom=(170, 650),
-         stars=[(170, 205), (170, 100), (195, 520)]),
+         "The candy rides in a bubble tied down by two ropes, as in the level before. Cut the left one and the "
+         "bubble drifts up and over the right pin; pop it once it floats over Om Nom and the candy drops into him. "
+         "Pop it too soon and the rope swings the candy past him.",
+         candies=[(120, 300)], bubbles=[{"pos": (120, 300)}], ropes=[rope(40, 420), rope(265, 420)],
+         om_nom=(265, 520), stars=[(170, 240), (245, 220), (265, 330)]),
     make("b1_l08", "Throw it into the bubble",
          "Cut the rope above the candy and it swings on the other; let go so that it flies into the bubble, which "
          "carries it up to Om Nom.",
@@ -218,10 +219,13 @@ BOX1: list[Level] = [
          candies=[(90, 500)], ropes=[rope(20, 560, balance=True), rope(190, 380, stretch=40)],
          spikes=[spikes((290, 520), (290, 700))], om_nom=(390, 640), stars=[(150, 440), (250, 360), (350, 520)]),
     make("b1_l19", "Not that rope",
-         "The automatic rope is right under the candy: it grabs it as it falls and swings it round into the spikes. "
-         "Take that rope away (before or right after it grabs) and the candy falls straight to Om Nom.",
-         candies=[(300, 160)], ropes=[rope(300, 60)], active_pins=[{"pos": (240, 240), "radius": 90}],
-         spikes=[spikes((110, 210), (150, 300))], om_nom=(300, 620), stars=[(300, 280), (300, 380), (300, 500)]),
+         "Cut the left rope and the candy swings out on the right one, toward Om Nom behind a row of spikes; but "
+         "the automatic rope lies across the swing: it grabs the candy and, left holding it alone, swings it into "
+         "the spikes. Take it away first and let go at the far end of the swing; or let it grab, and let go of "
+         "both ropes in turn at the moments that throw the candy over the spikes. Let go early and the candy flies "
+         "into them.",
+         candies=[(200, 250)], ropes=[rope(100, 130), rope(320, 150)], active_pins=[{"pos": (320, 400), "radius": 100}],
+         spikes=[spikes((370, 450), (370, 680))], om_nom=(430, 600), stars=[(260, 300), (380, 300), (430, 420)]),
     make("b1_l20", "Together",
          "Cut either rope alone and the other swings the candy into spikes. Cut both in one swipe, cut_pin(1, 2), "
          "and it drops straight to Om Nom.",
