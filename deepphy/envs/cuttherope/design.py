@@ -410,9 +410,10 @@ BOX3: list[Level] = [
          candies=[(240, 160)], ropes=[rope(240, 60)], electrics=[electric((140, 400), (340, 400), 2.0, 1.2)],
          om_nom=(240, 620), stars=[(240, 280), (240, 470), (240, 540)]),
     make("b3_l03", "A ramp",
-         "Drop the candy on the metal ramp and it rolls down, through the stars, into Om Nom. Cut the wrong rope "
-         "first and it swings away from the ramp.",
-         candies=[(140, 240)], ropes=[rope(140, 120), rope(40, 140)], walls=[wall((110, 400), (340, 490))],
+         "Drop the candy on the metal ramp and it rolls down, through the stars, into Om Nom: cut both ropes in one "
+         "swipe and it drops straight through the first star. Cut one alone and the other swings the candy: to the "
+         "left it misses the ramp, to the right it lands lower down and misses that star.",
+         candies=[(140, 240)], ropes=[rope(60, 150), rope(220, 150)], walls=[wall((110, 400), (340, 490))],
          om_nom=(400, 550), stars=[(140, 330), (210, 400), (300, 440)]),
     make("b3_l04", "Hook and sparks",
          "The hook carries the candy back and forth above a barrier that sparks on and off. Cut when the candy is "
@@ -453,10 +454,10 @@ BOX4: list[Level] = [
          candies=[(100, 160)], ropes=[rope(100, 60)], hats=[hats((100, 420), 90, (360, 200), 270)], om_nom=(360, 600),
          stars=[(100, 300), (360, 330), (360, 460)]),
     make("b4_l02", "Out sideways",
-         "Om Nom sits under a row of spikes. Drop the candy straight into the hat (cut the slack rope first, or it "
-         "swings the candy): the second hat faces sideways and shoots it, as fast as it fell, under the spikes to "
-         "him.",
-         candies=[(80, 150)], ropes=[rope(80, 50), rope(200, 70, slack=10)], hats=[hats((80, 560), 90, (160, 300), 0)],
+         "Om Nom sits under a row of spikes. Drop the candy straight into the hat, both ropes in one swipe (either "
+         "alone swings it off the line): the second hat faces sideways and shoots it, as fast as it fell, under the "
+         "spikes to him.",
+         candies=[(80, 150)], ropes=[rope(20, 60), rope(140, 60)], hats=[hats((80, 560), 90, (160, 300), 0)],
          spikes=[spikes((290, 265), (470, 265))], om_nom=(450, 335),
          stars=[(80, 300), (300, 305), (390, 322)]),
     make("b4_l03", "As fast as it went in",
@@ -480,9 +481,9 @@ BOX4: list[Level] = [
          candies=[(120, 300)], ropes=[rope(120, 150)], cushions=[cushion(30, 300, 0)],
          hats=[hats((360, 330), 180, (240, 120), 270)], om_nom=(240, 620), stars=[(230, 300), (320, 320), (240, 400)]),
     make("b4_l07", "Around the spikes",
-         "Spikes roof Om Nom over; the hat's pair opens under them. Drop the candy straight into the hat: cut the "
-         "slack rope first, or it swings the candy away.",
-         candies=[(80, 150)], ropes=[rope(80, 50), rope(200, 60, slack=0)], hats=[hats((80, 500), 90, (360, 470), 270)],
+         "Spikes roof Om Nom over; the hat's pair opens under them. Drop the candy straight into the hat: cut both "
+         "ropes in one swipe, or the other one swings the candy away.",
+         candies=[(80, 150)], ropes=[rope(20, 50), rope(160, 70)], hats=[hats((80, 500), 90, (360, 470), 270)],
          spikes=[spikes((280, 430), (440, 430))], om_nom=(370, 620),
          stars=[(80, 300), (80, 420), (370, 540)]),
     make("b4_l08", "Sling into the hat",
@@ -510,9 +511,11 @@ BOX4: list[Level] = [
          candies=[(80, 200)], ropes=[rope(80, 80, track=track(400, 80, 8.0))], hats=[hats((300, 450), 90, (420, 380), 270)],
          om_nom=(420, 640), stars=[(200, 210), (300, 350), (420, 520)]),
     make("b4_l13", "Roll into the hat",
-         "Drop the candy on the ramp: it rolls down into the hat at its foot, and the other hat throws it down to Om "
-         "Nom. Cut the wrong rope first and it swings off the ramp's end.",
-         candies=[(170, 180)], ropes=[rope(170, 80), rope(40, 60, slack=0)], walls=[wall((150, 345), (330, 420))],
+         "Drop the candy on the ramp, both ropes in one swipe: it rolls down into the hat at its foot, and the other "
+         "hat throws it down to Om Nom. Cut one rope alone and the other swings the candy into the spikes or off "
+         "the ramp.",
+         candies=[(170, 180)], ropes=[rope(90, 90), rope(250, 90)], walls=[wall((150, 345), (330, 420))],
+         spikes=[spikes((235, 190), (235, 300))],
          hats=[hats((380, 420), 180, (100, 470), 300)], om_nom=(210, 640), stars=[(170, 260), (260, 360), (150, 560)]),
     make("b4_l14", "Puff the bubble under the hat",
          "The bubble rises beside the hat; puff it over so that it rises into the hat, and pop it when its pair lets "
