@@ -410,10 +410,9 @@ BOX3: list[Level] = [
          candies=[(240, 160)], ropes=[rope(240, 60)], electrics=[electric((140, 400), (340, 400), 2.0, 1.2)],
          om_nom=(240, 620), stars=[(240, 280), (240, 470), (240, 540)]),
     make("b3_l03", "A ramp",
-         "Drop the candy on the metal ramp and it rolls down, through the stars, into Om Nom: cut both ropes in one "
-         "swipe and it drops straight through the first star. Cut one alone and the other swings the candy: to the "
-         "left it misses the ramp, to the right it lands lower down and misses that star.",
-         candies=[(140, 240)], ropes=[rope(60, 150), rope(220, 150)], walls=[wall((110, 400), (340, 490))],
+         "Drop the candy on the metal ramp and it rolls down, through the stars, into Om Nom. Cut the wrong rope "
+         "first and it swings away from the ramp.",
+         candies=[(140, 240)], ropes=[rope(140, 120), rope(40, 140)], walls=[wall((110, 400), (340, 490))],
          om_nom=(400, 550), stars=[(140, 330), (210, 400), (300, 440)]),
     make("b3_l04", "Hook and sparks",
          "The hook carries the candy back and forth above a barrier that sparks on and off. Cut when the candy is "
@@ -454,11 +453,10 @@ BOX4: list[Level] = [
          candies=[(100, 160)], ropes=[rope(100, 60)], hats=[hats((100, 420), 90, (360, 200), 270)], om_nom=(360, 600),
          stars=[(100, 300), (360, 330), (360, 460)]),
     make("b4_l02", "Out sideways",
-         "Om Nom sits under a row of spikes. Drop the candy straight into the hat, both ropes in one swipe (either "
-         "alone swings it off the line): the second hat faces sideways and shoots it, as fast as it fell, under the "
-         "spikes to him.",
+         "Drop the candy straight into the hat, both ropes in one swipe (either alone swings it off the line): the "
+         "second hat faces sideways and shoots it across, as fast as it fell, to Om Nom.",
          candies=[(80, 150)], ropes=[rope(20, 60), rope(140, 60)], hats=[hats((80, 560), 90, (160, 300), 0)],
-         spikes=[spikes((290, 265), (470, 265))], om_nom=(450, 335),
+         om_nom=(450, 335),
          stars=[(80, 300), (300, 305), (390, 322)]),
     make("b4_l03", "As fast as it went in",
          "The exit hat points up at Om Nom, high above it. The candy leaves as fast as it entered: let the bubble "
