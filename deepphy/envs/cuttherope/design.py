@@ -158,10 +158,11 @@ BOX1: list[Level] = [
          candies=[(140, 520)], bubbles=[{"pos": (140, 520)}], ropes=[rope(60, 640), rope(340, 660)],
          om_nom=(330, 100), stars=[(215, 458), (300, 360), (310, 230)]),
     make("b1_l07", "Pop it over Om Nom",
-         "Om Nom waits below, the stars are above: let the bubble lift the candy through them, then pop it and the "
-         "candy falls all the way down to him.",
-         candies=[(170, 260)], ropes=[rope(170, 150)], bubbles=[{"pos": (170, 360)}], om_nom=(170, 650),
-         stars=[(170, 205), (170, 100), (195, 520)]),
+         "The candy rides in a bubble tied down by two ropes, as in the level before. Cut the left one and the "
+         "bubble drifts up and over the right pin; pop it once it floats over Om Nom and the candy drops into him. "
+         "Pop it too soon and the rope swings the candy past him.",
+         candies=[(120, 300)], bubbles=[{"pos": (120, 300)}], ropes=[rope(40, 420), rope(265, 420)],
+         om_nom=(265, 520), stars=[(170, 240), (245, 220), (265, 330)]),
     make("b1_l08", "Throw it into the bubble",
          "Cut the rope above the candy and it swings on the other; let go so that it flies into the bubble, which "
          "carries it up to Om Nom.",
@@ -218,10 +219,13 @@ BOX1: list[Level] = [
          candies=[(90, 500)], ropes=[rope(20, 560, balance=True), rope(190, 380, stretch=40)],
          spikes=[spikes((290, 520), (290, 700))], om_nom=(390, 640), stars=[(150, 440), (250, 360), (350, 520)]),
     make("b1_l19", "Not that rope",
-         "The automatic rope is right under the candy: it grabs it as it falls and swings it round into the spikes. "
-         "Take that rope away (before or right after it grabs) and the candy falls straight to Om Nom.",
-         candies=[(300, 160)], ropes=[rope(300, 60)], active_pins=[{"pos": (240, 240), "radius": 90}],
-         spikes=[spikes((110, 210), (150, 300))], om_nom=(300, 620), stars=[(300, 280), (300, 380), (300, 500)]),
+         "Cut the left rope and the candy swings out on the right one, toward Om Nom behind a row of spikes; but "
+         "the automatic rope lies across the swing: it grabs the candy and, left holding it alone, swings it into "
+         "the spikes. Take it away first and let go at the far end of the swing; or let it grab, and let go of "
+         "both ropes in turn at the moments that throw the candy over the spikes. Let go early and the candy flies "
+         "into them.",
+         candies=[(200, 250)], ropes=[rope(100, 130), rope(320, 150)], active_pins=[{"pos": (320, 400), "radius": 100}],
+         spikes=[spikes((370, 450), (370, 680))], om_nom=(430, 600), stars=[(260, 300), (380, 300), (430, 420)]),
     make("b1_l20", "Together",
          "Cut either rope alone and the other swings the candy into spikes. Cut both in one swipe, cut_pin(1, 2), "
          "and it drops straight to Om Nom.",
@@ -449,11 +453,10 @@ BOX4: list[Level] = [
          candies=[(100, 160)], ropes=[rope(100, 60)], hats=[hats((100, 420), 90, (360, 200), 270)], om_nom=(360, 600),
          stars=[(100, 300), (360, 330), (360, 460)]),
     make("b4_l02", "Out sideways",
-         "Om Nom sits under a row of spikes. Drop the candy straight into the hat (cut the slack rope first, or it "
-         "swings the candy): the second hat faces sideways and shoots it, as fast as it fell, under the spikes to "
-         "him.",
-         candies=[(80, 150)], ropes=[rope(80, 50), rope(200, 70, slack=10)], hats=[hats((80, 560), 90, (160, 300), 0)],
-         spikes=[spikes((290, 265), (470, 265))], om_nom=(450, 335),
+         "Drop the candy straight into the hat, both ropes in one swipe (either alone swings it off the line): the "
+         "second hat faces sideways and shoots it across, as fast as it fell, to Om Nom.",
+         candies=[(80, 150)], ropes=[rope(20, 60), rope(140, 60)], hats=[hats((80, 560), 90, (160, 300), 0)],
+         om_nom=(450, 335),
          stars=[(80, 300), (300, 305), (390, 322)]),
     make("b4_l03", "As fast as it went in",
          "The exit hat points up at Om Nom, high above it. The candy leaves as fast as it entered: let the bubble "
@@ -476,9 +479,9 @@ BOX4: list[Level] = [
          candies=[(120, 300)], ropes=[rope(120, 150)], cushions=[cushion(30, 300, 0)],
          hats=[hats((360, 330), 180, (240, 120), 270)], om_nom=(240, 620), stars=[(230, 300), (320, 320), (240, 400)]),
     make("b4_l07", "Around the spikes",
-         "Spikes roof Om Nom over; the hat's pair opens under them. Drop the candy straight into the hat: cut the "
-         "slack rope first, or it swings the candy away.",
-         candies=[(80, 150)], ropes=[rope(80, 50), rope(200, 60, slack=0)], hats=[hats((80, 500), 90, (360, 470), 270)],
+         "Spikes roof Om Nom over; the hat's pair opens under them. Drop the candy straight into the hat: cut both "
+         "ropes in one swipe, or the other one swings the candy away.",
+         candies=[(80, 150)], ropes=[rope(20, 50), rope(160, 70)], hats=[hats((80, 500), 90, (360, 470), 270)],
          spikes=[spikes((280, 430), (440, 430))], om_nom=(370, 620),
          stars=[(80, 300), (80, 420), (370, 540)]),
     make("b4_l08", "Sling into the hat",
@@ -506,9 +509,11 @@ BOX4: list[Level] = [
          candies=[(80, 200)], ropes=[rope(80, 80, track=track(400, 80, 8.0))], hats=[hats((300, 450), 90, (420, 380), 270)],
          om_nom=(420, 640), stars=[(200, 210), (300, 350), (420, 520)]),
     make("b4_l13", "Roll into the hat",
-         "Drop the candy on the ramp: it rolls down into the hat at its foot, and the other hat throws it down to Om "
-         "Nom. Cut the wrong rope first and it swings off the ramp's end.",
-         candies=[(170, 180)], ropes=[rope(170, 80), rope(40, 60, slack=0)], walls=[wall((150, 345), (330, 420))],
+         "Drop the candy on the ramp, both ropes in one swipe: it rolls down into the hat at its foot, and the other "
+         "hat throws it down to Om Nom. Cut one rope alone and the other swings the candy into the spikes or off "
+         "the ramp.",
+         candies=[(170, 180)], ropes=[rope(90, 90), rope(250, 90)], walls=[wall((150, 345), (330, 420))],
+         spikes=[spikes((235, 190), (235, 300))],
          hats=[hats((380, 420), 180, (100, 470), 300)], om_nom=(210, 640), stars=[(170, 260), (260, 360), (150, 560)]),
     make("b4_l14", "Puff the bubble under the hat",
          "The bubble rises beside the hat; puff it over so that it rises into the hat, and pop it when its pair lets "
