@@ -175,8 +175,9 @@ class AngryBirdsEnv(Environment):
         text = "; ".join(parts) + "."
         if won:
             spare = len(level.birds) - self._shots
-            text += (f" Every pig is dead: level won with {spare} bird(s) to spare "
-                     f"(+{C.SCORE_UNUSED_BIRD * spare}); final score {score}, {stars} star(s).")
+            saved = (f"with {spare} bird(s) to spare (+{C.SCORE_UNUSED_BIRD * spare})" if spare
+                     else "with the last bird (no bonus for spare birds)")
+            text += f" Every pig is dead: level won {saved}; final score {score}, {stars} star(s)."
         elif done:
             text += f" No birds left and {world.pigs_left} pig(s) still standing: level lost."
         return text

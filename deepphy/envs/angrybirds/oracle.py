@@ -43,6 +43,7 @@ from deepphy.seeding import seeded_rng
 POWERS = tuple(round(0.3 + 0.05 * k, 2) for k in range(15))  # 0.3 .. 1.0
 FINE_GRID = tuple((float(a), p) for a in range(0, 91) for p in POWERS)  # 1365 shots
 COARSE_GRID = tuple((float(a), p) for a in range(0, 91, 2) for p in POWERS)  # 690 shots
+QUICK_GRID = tuple((float(a), p) for a in range(0, 91, 4) for p in POWERS[::2])  # 184 shots: the ability check
 SETUPS = 4  # set-up states extended per depth
 CANDIDATES = 6  # winning plans measured for robustness
 CENTRED = 2  # of those, the most robust are centred
@@ -63,6 +64,7 @@ class Outcome:
     alive: tuple[int, ...]  # which pigs survive
     broken: tuple[int, ...]  # which blocks and crates are gone
     moved: tuple[int, ...]  # which surviving blocks and crates were knocked out of place
+    abilities: int = 0  # shots whose bird used its ability (dashed, split or exploded)
 
     @property
     def progress(self) -> tuple:
@@ -73,13 +75,14 @@ class Outcome:
         return (self.alive, self.broken, self.moved)
 
 
-def simulate(level: Level, plan) -> Outcome:
-    """Replay `plan` ((angle, power) per bird, in order) on a freshly built level."""
-    world = World(level)
+def simulate(level: Level, plan, abilities: bool = True) -> Outcome:
+    """Replay `plan` ((angle, power) per bird, in order) on a freshly built level
+    (`abilities=False`: the birds without their abilities)."""
+    world = World(level, abilities=abilities)
     start = {t.index: (t.body.position, t.body.angle) for t in world.things}
-    shots = 0
+    shots = used = 0
     for angle, power in plan:
-        world.shoot(level.birds[shots], angle, power)
+        used += world.shoot(level.birds[shots], angle, power).ability_acted
         shots += 1
         if world.pigs_left == 0:
             break
@@ -96,6 +99,7 @@ def simulate(level: Level, plan) -> Outcome:
         moved=tuple(t.index for t in world.things if t.alive and t.kind in ("block", "tnt")
                     and (abs(t.body.position - start[t.index][0]) > MOVED
                          or abs(t.body.angle - start[t.index][1]) > math.radians(20))),
+        abilities=used,
     )
 
 
@@ -172,15 +176,34 @@ class SearchResult:
 
 
 class Search:
-    def __init__(self, level: Level, log=None) -> None:
+    def __init__(self, level: Level, log=None, abilities: bool = True) -> None:
         self.level = level
         self.log = log or (lambda text: None)
+        self.abilities = abilities
         self._seen: dict[tuple, Outcome] = {}
 
     def run(self, plan: tuple) -> Outcome:
         if plan not in self._seen:
-            self._seen[plan] = simulate(self.level, plan)
+            self._seen[plan] = simulate(self.level, plan, self.abilities)
         return self._seen[plan]
+
+    def first_win(self, max_depth: int) -> Outcome | None:
+        """The first win the search meets within `max_depth` birds (QUICK_GRID at every
+        depth, extending the single most productive set-up, chosen as in `solve`), or None:
+        a quick, greedy test of winnability."""
+        frontier: list[tuple] = [()]
+        near = _neighbours(QUICK_GRID)
+        for _ in range(min(max_depth, len(self.level.birds))):
+            layers = []
+            for prefix in frontier:
+                outs = {}
+                for shot in QUICK_GRID:
+                    outs[shot] = o = self.run(prefix + (shot,))
+                    if o.won:
+                        return o
+                layers.append((prefix, outs))
+            frontier = self._setups(layers, near)[:1]
+        return None
 
     def _depth(self, prefix: tuple, grid: tuple) -> dict[tuple[float, float], Outcome]:
         return {shot: self.run(prefix + (shot,)) for shot in grid}
@@ -254,6 +277,22 @@ class Search:
                       reverse=True)
         r, o = measured[0]
         return o, r
+
+
+def ability_needed(level: Level, plan) -> str:
+    """Whether the abilities of the level's birds matter to a winning plan: "-" when the
+    level has only red birds; "unused" when no bird of `plan` (a winning plan) uses its
+    ability; "no" when the birds win without abilities with as few birds as `plan` (the
+    plan itself, or the first win the greedy `Search.first_win` meets on its 4 degree x 0.1
+    grid); "yes" when that search finds no such win (evidence from a quick search, not a
+    proof)."""
+    if set(level.birds) == {"red"}:
+        return "-"
+    if not simulate(level, plan).abilities:
+        return "unused"
+    if simulate(level, plan, abilities=False).won:
+        return "no"
+    return "no" if Search(level, abilities=False).first_win(len(plan)) else "yes"
 
 
 def _fmt(plan) -> str:

@@ -102,6 +102,7 @@ class ShotResult:
     pigs_killed: int = 0
     blocks_destroyed: dict[str, int] = field(default_factory=dict)  # by material, "tnt" for crates
     ability: str = ""  # what the bird's ability did, in words
+    ability_acted: bool = False  # the bird dashed, split or exploded
     first_hit: str | None = None  # what the bird hit first
     first_hit_time: float | None = None
     birds_hit: int = 0  # birds of the shot (three for a split blue bird) that hit something
@@ -130,10 +131,13 @@ def settled_poses(level: Level) -> tuple[tuple[float, float, float], ...]:
 
 
 class World:
-    def __init__(self, level: Level, *, settle: bool = True) -> None:
+    def __init__(self, level: Level, *, settle: bool = True, abilities: bool = True) -> None:
         """The level at its start state; `settle=False`: at the positions its data gives
-        (what the start state is computed from)."""
+        (what the start state is computed from). `abilities=False`: the birds fly without
+        their abilities (no dash, split or blast), for the oracle's check whether a level
+        needs them."""
         self.level = level
+        self.abilities = abilities
         space = pymunk.Space()
         space.gravity = (0.0, -C.GRAVITY)
         space.iterations = C.ITERATIONS
@@ -386,8 +390,10 @@ class World:
         if shot is not None and shot.first_hit is None:
             shot.first_hit = what
             shot.first_hit_time = self._shot_time
-        if bird.bird == "black" and bird.alive:
+        if bird.bird == "black" and bird.alive and self.abilities:
             self._explode_bird(bird)
+            if shot is not None:
+                shot.ability_acted = True
 
     def _fixed_name(self, shape: pymunk.Shape) -> str:
         return "the ground" if shape is self._ground else "a fixed platform"
@@ -466,7 +472,7 @@ class World:
         first = self._add_bird(bird, (C.SLING_X, C.SLING_Y), C.launch_velocity(angle, power))
         birds = [first]
         trails: list[list[tuple[float, float]]] = [[(C.SLING_X, C.SLING_Y)]]
-        ability_pending = bird in ("yellow", "blue")
+        ability_pending = self.abilities and bird in ("yellow", "blue")
         steps = 0
         max_steps = round(C.SHOT_MAX_TIME / C.DT)
         trail_every = max(1, round(C.TRAIL_EVERY / C.DT))
@@ -488,14 +494,17 @@ class World:
                     shot.ability = f"the {C.BIRD_NAMES[bird]} hit something before its ability could act"
                 elif bird == "yellow":
                     self._dash(first)
+                    shot.ability_acted = True
                     shot.ability = "the yellow bird dashed forward"
                 else:
                     birds += self._split(first)
+                    shot.ability_acted = True
                     trails += [list(trails[0]) for _ in range(len(birds) - len(trails))]
                     shot.ability = "the blue bird split into three"
-            if bird == "black" and first.alive and t >= C.BLACK_FUSE - 1e-9:
+            if bird == "black" and self.abilities and first.alive and t >= C.BLACK_FUSE - 1e-9:
                 self._explode_bird(first)
                 self._after_step()
+                shot.ability_acted = True
                 shot.ability = "the black bird exploded in the air (its fuse ran out)"
             if steps % CHECK_EVERY == 0:
                 self._housekeeping(birds, bird_hold_steps)
@@ -513,7 +522,7 @@ class World:
                     break
         else:
             shot.at_rest = False
-        if bird == "black" and not shot.ability:
+        if bird == "black" and self.abilities and not shot.ability:
             shot.ability = "the black bird exploded on impact" if first.hit else ""
         for b in birds:  # only at the safety cap
             if b.alive:

@@ -19,8 +19,8 @@ and calibrate the levels (oracle.py has the methods and their definitions).
         `deepphy run --model mock --seed SEED` draws runs 0..EPISODES-1 (single-shot win
         rate: the first shot wins; episode win rate: the birds win before they run out),
         the oracle's fewest birds and its evidence, the stored plan's robustness measured
-        again, the stars of the oracle's plan and of the random wins, and whether one-shot
-        wins all earn 3 stars. Then the overall figures against the targets. Minutes.
+        again, the stars of the oracle's plan and of the random wins, whether one-shot
+        wins all earn 3 stars, and whether the birds' abilities matter (oracle.ability_needed). Then the overall figures against the targets. Minutes.
 
 `main(argv)` is the entry point (wired to `deepphy solve --env angrybirds`).
 """
@@ -36,7 +36,14 @@ from pathlib import Path
 
 from deepphy.envs.angrybirds import constants as C
 from deepphy.envs.angrybirds.levels import Level, Oracle, Shot, level_ids, load_level, save_level, star_thresholds
-from deepphy.envs.angrybirds.oracle import Search, SearchResult, reference_episode, robustness, simulate
+from deepphy.envs.angrybirds.oracle import (
+    Search,
+    SearchResult,
+    ability_needed,
+    reference_episode,
+    robustness,
+    simulate,
+)
 
 # Targets of issue 19 (the calibration report checks them).
 TARGET_EPISODE_WINS = (0.10, 0.25)  # share of levels the reference baseline wins, overall
@@ -162,6 +169,7 @@ def calibrate_level(level_id: str, episodes: int, seed: int) -> dict:
         "oracle_blocks": replay.blocks, "two_stars": level.stars.two, "three_stars": level.stars.three,
         "robustness": robust, "robustness_stored": level.oracle.robustness,
         "one_shot_wins": len(one_shot), "one_shot_below_three": sum(s < 3 for s in one_shot),
+        "ability_needed": ability_needed(level, plan),
     }
 
 
@@ -183,18 +191,19 @@ def overall(rows: list[dict]) -> dict:
         "one_shot_levels_all_three": [r["level"] for r in rows
                                       if r["oracle_birds"] == 1 and r["one_shot_below_three"] == 0],
         "capped_shots": sum(r["capped_shots"] for r in rows),
+        "ability_needed": {v: [r["level"] for r in rows if r["ability_needed"] == v] for v in ("yes", "no", "unused")},
     }
 
 
 def print_calibration(rows: list[dict], total: dict) -> None:
     print(f"{'level':7} {'birds':9} {'pigs':>4} {'rand1':>6} {'randE':>6} {'min':>3} {'evid':>6} "
-          f"{'robust':>6} {'or*':>3} {'rnd*':>4} {'3*/W':>5} {'1s<3*':>7}  idea")
+          f"{'robust':>6} {'or*':>3} {'rnd*':>4} {'3*/W':>5} {'1s<3*':>7} {'abil':>6}  idea")
     for r in rows:
         rs = f"{r['random_stars']:.1f}" if r["random_stars"] is not None else "-"
         print(f"{r['level']:7} {r['birds']:9} {r['pigs']:4d} {100 * r['random_single']:5.0f}% "
               f"{100 * r['random_episode']:5.0f}% {r['oracle_birds']:3d} {r['oracle_evidence']:6d} "
               f"{r['robustness']:6.2f} {r['oracle_stars']:3d} {rs:>4} {r['random_three_stars']:2d}/{r['random_wins']:<2d} "
-              f"{r['one_shot_below_three']:3d}/{r['one_shot_wins']:<3d}  {r['idea'][:60]}")
+              f"{r['one_shot_below_three']:3d}/{r['one_shot_wins']:<3d} {r['ability_needed']:>6}  {r['idea'][:60]}")
     t = total
     lo, hi = TARGET_EPISODE_WINS
 
@@ -215,10 +224,15 @@ def print_calibration(rows: list[dict], total: dict) -> None:
     print(f"one-shot levels where every one-shot win seen earned 3 stars: "
           f"{', '.join(t['one_shot_levels_all_three']) or 'none'}")
     print(f"shots that stopped at the {C.SHOT_MAX_TIME:g} s cap: {t['capped_shots']}")
+    for verdict, what in (("yes", "needed"), ("no", "not needed"), ("unused", "unused by the oracle's plan")):
+        levels = t["ability_needed"][verdict]
+        print(f"bird abilities {what}: {len(levels)} level(s){': ' + ', '.join(levels) if levels else ''}")
     print("columns: rand1 = random single-shot wins, randE = random episodes won, min = oracle's fewest birds, "
           "evid = shorter plans simulated without a win, robust = share of +-1 deg / +-0.02 power nudges of the "
           "weakest shot that still win, or* = stars of the oracle's plan, rnd* = mean stars of random wins, "
-          "3*/W = random wins with 3 stars / random wins, 1s<3* = one-shot wins seen with fewer than 3 stars")
+          "3*/W = random wins with 3 stars / random wins, 1s<3* = one-shot wins seen with fewer than 3 stars, "
+          "abil = the birds' abilities needed: yes (no win without them with the oracle's number of birds), "
+          "no (there is one), unused (the oracle's plan uses none), - (red birds only)")
 
 
 # -- the command line -----------------------------------------------------------------------------
