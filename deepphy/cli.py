@@ -11,6 +11,7 @@ from pydantic import ValidationError
 
 from deepphy import __version__
 from deepphy.config import DEFAULT_OUT, RunConfig, RuntimeOptions
+from deepphy.messages import one_line, validation_message
 
 
 class UserError(Exception):
@@ -190,9 +191,7 @@ def _validated(make):
     try:
         return make()
     except ValidationError as e:
-        err = e.errors()[0]
-        where = ".".join(map(str, err["loc"]))
-        raise UserError(f"{where + ': ' if where else ''}{err['msg'].removeprefix('Value error, ')}") from None
+        raise UserError(validation_message(e)) from None
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -361,7 +360,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     try:
         options = cls.Options(**_env_options(args.env_option))
     except ValidationError as e:
-        raise UserError(f"bad option for {args.env}: {e.errors()[0]['msg']}") from None
+        raise UserError(f"bad option for {args.env}: {validation_message(e)}") from None
     tasks = {t.id: t for t in cls.tasks(options)}
     if args.task not in tasks:
         raise UserError(f"unknown {args.env} task {args.task!r}; see `deepphy envs --tasks {args.env}`")
@@ -532,9 +531,7 @@ def cmd_play(args: argparse.Namespace) -> int:
             player = args.player or getpass.getuser()
             config = RunConfig(**{"env": "iphyre", "runs": 1, **asked, "model": player_model(player)})
     except ValidationError as e:
-        err = e.errors()[0]
-        where = ".".join(map(str, err["loc"]))
-        raise UserError(f"{where + ': ' if where else ''}{err['msg'].removeprefix('Value error, ')}") from None
+        raise UserError(validation_message(e)) from None
     except ValueError as e:
         raise UserError(str(e)) from None
     out = Path(args.out or f"runs/human-{player}-{config.env}")
@@ -643,7 +640,7 @@ def main(argv: list[str] | None = None) -> int:
         return COMMANDS[args.command](args)
     except (UserError, ConfigError, RunDirError, UnknownEnvironment, UnknownModel, MissingKey, ModelsFileError,
             ClusterUnavailable, RayStartFailed, AccessDenied) as e:
-        print(f"deepphy: error: {_one_line(str(e))}", file=sys.stderr)
+        print(f"deepphy: error: {one_line(str(e))}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into `head` and friends
         sys.stderr.close()
@@ -667,13 +664,10 @@ def _crashed(error: Exception) -> int:
         where = f"the traceback is in {path}"
     except OSError:
         where = "no file could be written for the traceback"
-    message = _one_line(str(error))[:300] or "(no message)"
+    message = one_line(str(error))[:300] or "(no message)"
     print(f"deepphy: error: unexpected {type(error).__name__}: {message} ({where}; please report it)", file=sys.stderr)
     return 1
 
-
-def _one_line(text: str) -> str:
-    return " ".join(line.strip() for line in text.splitlines() if line.strip())
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ from deepphy import reaper
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.agents import endpoint_config, make_agent
 from deepphy.envs import EnvSpec, Task, get_spec
+from deepphy.messages import validation_message
 from deepphy.metrics import figures as F
 from deepphy.metrics.live import format_progress
 from deepphy.runs.status import RunStatus, remove_status, write_status
@@ -88,8 +89,7 @@ def resolve(config: RunConfig) -> tuple[EnvSpec, list[Task], int]:
     try:
         options = env_cls.Options(**config.env_options)
     except ValidationError as e:
-        err = e.errors()[0]
-        raise ConfigError(f"bad option for {config.env}: {'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+        raise ConfigError(f"bad option for {config.env}: {validation_message(e)}") from None
     tasks = env_cls.tasks(options)
     if config.tasks:
         by_id = {t.id: t for t in tasks}

@@ -33,6 +33,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from deepphy.chat import PromptFormat
 from deepphy.config import RunConfig, RuntimeOptions
+from deepphy.messages import one_line, validation_message
 from deepphy.runs.store import _atomic_write
 
 MANIFEST = "suite.json"
@@ -95,11 +96,9 @@ def load_suite(name_or_path: str) -> Suite:
     except OSError as e:
         raise SuiteError(f"suite file {path}: {e.strerror or e}") from None
     except yaml.YAMLError as e:
-        raise SuiteError(f"suite file {path}: not valid YAML ({_one_line(str(e))})") from None
+        raise SuiteError(f"suite file {path}: not valid YAML ({one_line(str(e))})") from None
     except ValidationError as e:
-        err = e.errors()[0]
-        where = ".".join(map(str, err["loc"]))
-        raise SuiteError(f"suite file {path}: {where}: {err['msg'].removeprefix('Value error, ')}") from None
+        raise SuiteError(f"suite file {path}: {validation_message(e)}") from None
 
 
 def _name_part(value: Any) -> str:
@@ -122,8 +121,7 @@ def cells(suite: Suite, models: list[str] | None = None) -> list[Cell]:
                                            tasks=entry.tasks, limit=entry.limit, max_attempts=entry.max_attempts,
                                            env_options=options)
                     except ValidationError as e:
-                        raise SuiteError(f"suite {suite.name}, {setting}: "
-                                         f"{e.errors()[0]['msg'].removeprefix('Value error, ')}") from None
+                        raise SuiteError(f"suite {suite.name}, {setting}: {validation_message(e)}") from None
                     out.append(Cell(f"{_name_part(model)}/{setting}/{fmt.value}", config))
     seen: dict[str, Cell] = {}
     for cell in out:
@@ -146,7 +144,7 @@ def read_manifest(root: Path) -> list[Cell]:
         data = json.loads(path.read_text())
         listed = [Cell(str(c["dir"]), RunConfig.model_validate(c["config"])) for c in data["cells"]]
     except (OSError, ValueError, KeyError, TypeError) as e:
-        raise SuiteError(f"{path} is not a suite manifest ({_one_line(str(e))[:200]})") from None
+        raise SuiteError(f"{path} is not a suite manifest ({one_line(str(e))[:200]})") from None
     for cell in listed:
         if not re.fullmatch(r"[A-Za-z0-9._=+-]+(/[A-Za-z0-9._=+-]+)*", cell.dir) or ".." in cell.dir.split("/"):
             raise SuiteError(f"{path} names a cell outside the suite root: {cell.dir[:100]!r}")
@@ -302,7 +300,7 @@ class Interleaved:
                         outcome = future.result()
                     except BaseException as e:  # noqa: BLE001 - raised once the other cells have stopped
                         self._stop(e)
-                        self._say(f"cell {cell.dir} failed: {_one_line(str(e)) or type(e).__name__}")
+                        self._say(f"cell {cell.dir} failed: {one_line(str(e)) or type(e).__name__}")
                     else:
                         outcomes[cell.dir] = CellOutcome(cell, outcome.episodes_done, outcome.episodes_total,
                                                          outcome.new_records)
@@ -460,6 +458,3 @@ def _kill(actor: Any) -> None:
     except Exception:  # noqa: BLE001 - already gone
         pass
 
-
-def _one_line(text: str) -> str:
-    return " ".join(line.strip() for line in text.splitlines() if line.strip())

@@ -30,6 +30,8 @@ from urllib.parse import urlparse
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from deepphy.messages import one_line, validation_message
+
 DEFAULT_MODELS_FILE = Path(__file__).with_name("models.yaml")
 MODELS_FILE_ENV = "DEEPPHY_MODELS_FILE"  # used when no file is given explicitly
 
@@ -210,8 +212,6 @@ def load_models(models_file: str | Path | None = None) -> dict[str, ModelConfig]
     except OSError as e:
         raise ModelsFileError(f"models file {path}: {e.strerror or e}") from None
     except yaml.YAMLError as e:
-        raise ModelsFileError(f"models file {path}: not valid YAML ({e})") from None
+        raise ModelsFileError(f"models file {path}: not valid YAML ({one_line(str(e))})") from None
     except ValidationError as e:
-        err = e.errors()[0]
-        where = ".".join(map(str, err["loc"]))
-        raise ModelsFileError(f"models file {path}: {where}: {err['msg'].removeprefix('Value error, ')}") from None
+        raise ModelsFileError(f"models file {path}: {validation_message(e)}") from None

@@ -44,6 +44,7 @@ from pydantic import ValidationError
 
 from deepphy.chat import Image, ImagePart, Message, TextPart
 from deepphy.config import RunConfig
+from deepphy.messages import validation_message
 from deepphy.prompts import image_digest, prompt_as_json
 from deepphy.runs.records import AttemptRecord, episode_finished
 
@@ -577,9 +578,7 @@ def _atomic_write(target: Path, data: bytes) -> None:
 
 
 def _first_error(e: ValidationError) -> str:
-    err = e.errors()[0]
-    where = ".".join(map(str, err["loc"]))
-    return f"{where + ': ' if where else ''}{err['msg']}"[:200]
+    return validation_message(e)[:200]  # bounded: the data it quotes came from disk
 
 
 def _diff(old: dict, new: dict) -> str:
