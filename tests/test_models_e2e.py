@@ -89,9 +89,13 @@ def report_of(config, path):
     return build_report(config, tasks, read_records(path), k)
 
 
-def test_faulty_server_run_equals_the_mock_run(server, models_file, mock_run, tmp_path):
+def test_faulty_server_run_equals_the_mock_run(server, models_file, mock_run, tmp_path, request):
     server.reset()
-    server.configure(faults={"rate": 0.2, "kinds": TRANSPORT_FAULTS, "retry_after_s": 0.2, "hang_s": 30.0})
+    # Every distinct request's first arrival is faulted, the kinds in turn: each kind is served
+    # whatever the requests' bytes (drawn kinds over ~4 faults missed one after a PNG change).
+    server.configure(faults={"rate": 0.2, "first_tries": 1, "in_turn": True, "kinds": TRANSPORT_FAULTS,
+                             "retry_after_s": 0.2, "hang_s": 30.0})
+    request.addfinalizer(lambda: server.configure(faults={"first_tries": 0, "in_turn": False}))  # the module's server
     out = tmp_path / "run"
     stream = io.StringIO()
     outcome = evaluate(LOCAL, out, RUNTIME.model_copy(update={"progress": True, "models_file": models_file()}), stream=stream)

@@ -79,6 +79,8 @@ class Faults(BaseModel):
     hang_s: float = Field(3600.0, ge=0)
     drip_s: float = Field(1.0, gt=0, description="seconds between the bytes of a dripped body")
     first_tries: int = Field(0, ge=0, description="fault the first N arrivals of every distinct request (tests), on top of `rate`")
+    in_turn: bool = Field(False, description="serve the kinds in turn, not drawn at random: a test that must see "
+                                             "every kind sees it once len(kinds) faults were served")
 
     @field_validator("kinds")
     @classmethod
@@ -483,6 +485,7 @@ class MockServer:
         self.arrivals: list[float] = []
         self.seen: Counter[str] = Counter()
         self.faults: Counter[str] = Counter()
+        self.faults_chosen = 0  # for `in_turn`: counted when chosen (answers interleave)
         self.statuses: Counter[int] = Counter()
         self.in_flight = 0
         self.max_in_flight = 0
@@ -579,7 +582,11 @@ class MockServer:
         rng = _rng(cfg.seed, digest, nth)
         fault = None
         if nth < cfg.faults.first_tries or rng.random() < cfg.faults.rate:
-            fault = cfg.faults.kinds[int(rng.integers(len(cfg.faults.kinds)))]
+            if cfg.faults.in_turn:
+                fault = cfg.faults.kinds[self.faults_chosen % len(cfg.faults.kinds)]
+            else:
+                fault = cfg.faults.kinds[int(rng.integers(len(cfg.faults.kinds)))]
+            self.faults_chosen += 1
         delay = cfg.latency_s + (rng.random() * cfg.latency_jitter_s if cfg.latency_jitter_s else 0.0)
         if cfg.record_bodies:
             try:
