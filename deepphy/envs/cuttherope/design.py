@@ -185,9 +185,10 @@ BOX1: list[Level] = [
          active_pins=[{"pos": (200, 250), "radius": 120}], om_nom=(345, 300), stars=[(100, 380), (130, 172), (250, 390)]),
     make("b1_l12", "A stretched rope",
          "Two red ropes pull against each other. Cut the lower one: the upper one contracts and throws the candy up "
-         "past its pin, and swings it round into Om Nom.",
-         candies=[(140, 520)], ropes=[rope(40, 627, balance=True), rope(280, 380, stretch=35)], om_nom=(430, 380),
-         stars=[(220, 440), (300, 385), (370, 375)]),
+         "past its pin, catches it and swings it back down into Om Nom. Let go of it in flight and the candy flies "
+         "off the right edge.",
+         candies=[(140, 520)], ropes=[rope(40, 627, balance=True), rope(280, 380, stretch=35)], om_nom=(330, 590),
+         stars=[(230, 445), (440, 385), (370, 470)]),
     make("b1_l13", "Slingshot to a rope",
          "Cut the lower rope and the red rope slings the candy up; let it go at the top of its flight and the "
          "automatic rope catches it and swings it to Om Nom.",
