@@ -486,10 +486,11 @@ BOX4: list[Level] = [
          spikes=[spikes((280, 430), (440, 430))], om_nom=(370, 620),
          stars=[(80, 300), (80, 420), (370, 540)]),
     make("b4_l08", "Sling into the hat",
-         "The red rope slings the candy; cut it so that the candy flies into the hat, and the pair drops it into Om "
-         "Nom.",
+         "Cut the lower rope: the red rope slings the candy past its pin, catches it and swings it back down into the "
+         "hat, which takes the rope off; the pair drops the candy into Om Nom. Let go of the red rope in flight and "
+         "the candy flies off the right edge.",
          candies=[(100, 600)], ropes=[rope(20, 680, balance=True), rope(200, 460, stretch=30)],
-         hats=[hats((300, 470), 180, (70, 90), 270)], om_nom=(70, 420), stars=[(180, 500), (70, 200), (70, 300)]),
+         hats=[hats((214, 604), 0, (70, 90), 270)], om_nom=(70, 420), stars=[(180, 500), (70, 200), (70, 300)]),
     make("b4_l09", "Out of the hat, into a rope",
          "The candy falls into the hat and shoots out of its pair sideways; the automatic rope catches it in flight "
          "and swings it round, down into Om Nom. Take the automatic rope away and the candy flies off.",
