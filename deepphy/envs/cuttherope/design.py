@@ -333,10 +333,11 @@ BOX2: list[Level] = [
          candies=[(140, 360)], ropes=[rope(140, 200, spider=1.0)], cushions=[cushion(30, 360, 0)],
          om_nom=(300, 470), stars=[(220, 360), (290, 280), (300, 390)]),
     make("b2_l14", "Spider on a red rope",
-         "A spider starts down the stretched rope. Cut the rope below and the red rope throws the candy; cut the red "
-         "rope in flight, before the spider arrives, and the candy sails on to Om Nom.",
+         "A spider starts down the stretched rope. Cut the rope below and the red rope throws the candy up past its "
+         "pin, where it stops and falls; let go of the red rope while it falls and it drops into Om Nom. Let go too "
+         "soon and it flies off the right edge; hold on and the rope swings it away, and the spider comes.",
          candies=[(120, 560)], ropes=[rope(30, 660, balance=True), rope(230, 400, stretch=35, spider=0.0)],
-         om_nom=(420, 350), stars=[(180, 480), (280, 380), (350, 330)]),
+         om_nom=(300, 630), stars=[(200, 470), (393, 360), (320, 520)]),
     make("b2_l15", "Spider and the automatic rope",
          "Cut the spider's rope: the candy falls, the automatic rope catches it and swings it round. Let go of that "
          "rope when the candy flies toward Om Nom.",
