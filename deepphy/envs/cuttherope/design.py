@@ -235,8 +235,9 @@ BOX1: list[Level] = [
          stars=[(240, 380), (240, 450), (240, 530)]),
     make("b1_l21", "Twin slingshot",
          "Two red ropes pull the candy up against the rope below. Cut the lower one and they throw it up through a "
-         "star; let both go in one swipe at once and it falls straight back, through the others, to Om Nom.",
-         candies=[(240, 380)], ropes=[rope(120, 260, stretch=15), rope(360, 260, stretch=15), rope(240, 560, balance=True)],
+         "star and past their pins; let both go in one swipe, whenever you like, and it falls straight back, through "
+         "the others, to Om Nom. Let go of one alone and the other pulls the candy aside.",
+         candies=[(240, 380)], ropes=[rope(120, 260, stretch=25), rope(360, 260, stretch=25), rope(240, 560, balance=True)],
          om_nom=(240, 650), stars=[(240, 300), (240, 480), (200, 590)]),
     make("b1_l22", "Two now, one later",
          "Three ropes: cut the two short ones and the long one catches the candy and swings it; let go of it when "
