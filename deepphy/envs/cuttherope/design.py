@@ -240,10 +240,11 @@ BOX1: list[Level] = [
          candies=[(240, 380)], ropes=[rope(120, 260, stretch=25), rope(360, 260, stretch=25), rope(240, 560, balance=True)],
          om_nom=(240, 650), stars=[(240, 300), (240, 480), (200, 590)]),
     make("b1_l22", "Two now, one later",
-         "Three ropes: cut the two short ones and the long one catches the candy and swings it; let go of it when "
-         "the swing is over Om Nom.",
-         candies=[(240, 300)], ropes=[rope(140, 200), rope(340, 200), rope(400, 100, slack=20)],
-         om_nom=(340, 480), stars=[(260, 380), (330, 400), (290, 345)]),
+         "Three ropes: cut two now, the left one among them, and the third swings the candy out to the right; let "
+         "go of it near the far end of the swing and it drops through the stars into Om Nom. Let go early and it "
+         "flies under them (one star or two).",
+         candies=[(240, 300)], ropes=[rope(140, 200), rope(340, 200), rope(320, 40, slack=10)],
+         om_nom=(420, 530), stars=[(320, 335), (405, 290), (420, 420)]),
     make("b1_l23", "Up, across, down",
          "Let the bubble take the candy up into the automatic rope's reach, pop it, and let go of the automatic rope "
          "when its swing points at Om Nom.",
