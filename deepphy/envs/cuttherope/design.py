@@ -185,9 +185,10 @@ BOX1: list[Level] = [
          active_pins=[{"pos": (200, 250), "radius": 120}], om_nom=(345, 300), stars=[(100, 380), (130, 172), (250, 390)]),
     make("b1_l12", "A stretched rope",
          "Two red ropes pull against each other. Cut the lower one: the upper one contracts and throws the candy up "
-         "past its pin, and swings it round into Om Nom.",
-         candies=[(140, 520)], ropes=[rope(40, 627, balance=True), rope(280, 380, stretch=35)], om_nom=(430, 380),
-         stars=[(220, 440), (300, 385), (370, 375)]),
+         "past its pin, catches it and swings it back down into Om Nom. Let go of it in flight and the candy flies "
+         "off the right edge.",
+         candies=[(140, 520)], ropes=[rope(40, 627, balance=True), rope(280, 380, stretch=35)], om_nom=(330, 590),
+         stars=[(230, 445), (440, 385), (370, 470)]),
     make("b1_l13", "Slingshot to a rope",
          "Cut the lower rope and the red rope slings the candy up; let it go at the top of its flight and the "
          "automatic rope catches it and swings it to Om Nom.",
@@ -234,14 +235,16 @@ BOX1: list[Level] = [
          stars=[(240, 380), (240, 450), (240, 530)]),
     make("b1_l21", "Twin slingshot",
          "Two red ropes pull the candy up against the rope below. Cut the lower one and they throw it up through a "
-         "star; let both go in one swipe at once and it falls straight back, through the others, to Om Nom.",
-         candies=[(240, 380)], ropes=[rope(120, 260, stretch=15), rope(360, 260, stretch=15), rope(240, 560, balance=True)],
+         "star and past their pins; let both go in one swipe, whenever you like, and it falls straight back, through "
+         "the others, to Om Nom. Let go of one alone and the other pulls the candy aside.",
+         candies=[(240, 380)], ropes=[rope(120, 260, stretch=25), rope(360, 260, stretch=25), rope(240, 560, balance=True)],
          om_nom=(240, 650), stars=[(240, 300), (240, 480), (200, 590)]),
     make("b1_l22", "Two now, one later",
-         "Three ropes: cut the two short ones and the long one catches the candy and swings it; let go of it when "
-         "the swing is over Om Nom.",
-         candies=[(240, 300)], ropes=[rope(140, 200), rope(340, 200), rope(400, 100, slack=20)],
-         om_nom=(340, 480), stars=[(260, 380), (330, 400), (290, 345)]),
+         "Three ropes: cut two now, the left one among them, and the third swings the candy out to the right; let "
+         "go of it near the far end of the swing and it drops through the stars into Om Nom. Let go early and it "
+         "flies under them (one star or two).",
+         candies=[(240, 300)], ropes=[rope(140, 200), rope(340, 200), rope(320, 40, slack=10)],
+         om_nom=(420, 530), stars=[(320, 335), (405, 290), (420, 420)]),
     make("b1_l23", "Up, across, down",
          "Let the bubble take the candy up into the automatic rope's reach, pop it, and let go of the automatic rope "
          "when its swing points at Om Nom.",
@@ -332,10 +335,11 @@ BOX2: list[Level] = [
          candies=[(140, 360)], ropes=[rope(140, 200, spider=1.0)], cushions=[cushion(30, 360, 0)],
          om_nom=(300, 470), stars=[(220, 360), (290, 280), (300, 390)]),
     make("b2_l14", "Spider on a red rope",
-         "A spider starts down the stretched rope. Cut the rope below and the red rope throws the candy; cut the red "
-         "rope in flight, before the spider arrives, and the candy sails on to Om Nom.",
+         "A spider starts down the stretched rope. Cut the rope below and the red rope throws the candy up past its "
+         "pin, where it stops and falls; let go of the red rope while it falls and it drops into Om Nom. Let go too "
+         "soon and it flies off the right edge; hold on and the rope swings it away, and the spider comes.",
          candies=[(120, 560)], ropes=[rope(30, 660, balance=True), rope(230, 400, stretch=35, spider=0.0)],
-         om_nom=(420, 350), stars=[(180, 480), (280, 380), (350, 330)]),
+         om_nom=(300, 630), stars=[(200, 470), (393, 360), (320, 520)]),
     make("b2_l15", "Spider and the automatic rope",
          "Cut the spider's rope: the candy falls, the automatic rope catches it and swings it round. Let go of that "
          "rope when the candy flies toward Om Nom.",
@@ -485,10 +489,11 @@ BOX4: list[Level] = [
          spikes=[spikes((280, 430), (440, 430))], om_nom=(370, 620),
          stars=[(80, 300), (80, 420), (370, 540)]),
     make("b4_l08", "Sling into the hat",
-         "The red rope slings the candy; cut it so that the candy flies into the hat, and the pair drops it into Om "
-         "Nom.",
+         "Cut the lower rope: the red rope slings the candy past its pin, catches it and swings it back down into the "
+         "hat, which takes the rope off; the pair drops the candy into Om Nom. Let go of the red rope in flight and "
+         "the candy flies off the right edge.",
          candies=[(100, 600)], ropes=[rope(20, 680, balance=True), rope(200, 460, stretch=30)],
-         hats=[hats((300, 470), 180, (70, 90), 270)], om_nom=(70, 420), stars=[(180, 500), (70, 200), (70, 300)]),
+         hats=[hats((214, 604), 0, (70, 90), 270)], om_nom=(70, 420), stars=[(180, 500), (70, 200), (70, 300)]),
     make("b4_l09", "Out of the hat, into a rope",
          "The candy falls into the hat and shoots out of its pair sideways; the automatic rope catches it in flight "
          "and swings it round, down into Om Nom. Take the automatic rope away and the candy flies off.",
