@@ -34,7 +34,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from deepphy.chat import PromptFormat
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.messages import one_line, validation_message
-from deepphy.runs.store import _atomic_write
+from deepphy.runs.store import atomic_write
 
 MANIFEST = "suite.json"
 LOGS = "logs"  # the environment workers' output (shared by the cells of one environment setting)
@@ -211,7 +211,7 @@ def run_suite(suite: Suite, root: str | Path, runtime: RuntimeOptions, models: l
     added = len(wanted) - len(read_manifest(root)) if (root / MANIFEST).exists() else 0
     try:
         root.mkdir(parents=True, exist_ok=True)
-        _atomic_write(root / MANIFEST, json.dumps(_manifest(suite, wanted), indent=2).encode())
+        atomic_write(root / MANIFEST, json.dumps(_manifest(suite, wanted), indent=2).encode())
     except OSError as e:
         raise SuiteError(f"cannot write {root / MANIFEST}: {e.strerror or e}") from None
     if added:

@@ -151,7 +151,7 @@ class RunStore:
             store._lock()
             if not (store.path / CONFIG).exists():
                 try:
-                    _atomic_write(store.path / CONFIG, config.model_dump_json(indent=2).encode())
+                    atomic_write(store.path / CONFIG, config.model_dump_json(indent=2).encode())
                 except OSError as e:
                     raise _write_failed(store.path, CONFIG, e) from None
         except BaseException:
@@ -275,7 +275,7 @@ class RunStore:
                 if inside(self._root, f"{FRAMES}/{task}") is None:
                     raise RunDirError(f"{self.path}/{FRAMES}/{task} leads out of the run directory; refusing to write there")
                 self._task_dirs.add(task)
-            _atomic_write(self.path / rel, png)
+            atomic_write(self.path / rel, png)
         except OSError as e:
             raise _write_failed(self.path, rel, e) from None
         return rel
@@ -292,7 +292,7 @@ class RunStore:
                     for part in m.content:
                         if isinstance(part, ImagePart):
                             self._write_image(part.image)
-                _atomic_write(target, prompt_as_json(messages).encode())
+                atomic_write(target, prompt_as_json(messages).encode())
         except OSError as e:
             raise _write_failed(self.path, f"{PROMPTS}/{digest}.json", e) from None
         if len(self._prompts) >= PROMPTS_REMEMBERED:  # bounded: a long run's memory stays flat
@@ -314,7 +314,7 @@ class RunStore:
                 os.replace(tmp, target)
             except OSError:
                 tmp.unlink(missing_ok=True)
-                _atomic_write(target, png)
+                atomic_write(target, png)
         if len(self._images) >= PROMPTS_REMEMBERED:
             self._images.clear()
         self._images.add(digest)
@@ -565,7 +565,7 @@ def read_prompt(path: str | Path, digest: str) -> list[Message]:
     return messages
 
 
-def _atomic_write(target: Path, data: bytes) -> None:
+def atomic_write(target: Path, data: bytes) -> None:
     """Write to a temporary file renamed into place; the temporary file never stays behind."""
     tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
     try:
