@@ -86,8 +86,10 @@ def test_a_node_that_dies_mid_run_loses_nothing(tmp_path):
     try:
         assert started.returncode == 0, started.stderr
         address = started.stdout.strip().splitlines()[-1]
+        # Long enough (~700 attempts) that the node dies mid-run: attempts cost ~15 ms since the
+        # PNG encoding got cheaper, and 32 episodes could end before the kill.
         run = [sys.executable, "-m", "deepphy.cli", "run", "--address", address, "--env-workers", "2",
-               "--limit", "16", "--runs", "2", "--seed", "4", "--no-progress"]
+               "--limit", "40", "--runs", "3", "--seed", "4", "--no-progress"]
         whole = subprocess.run([*run, "--out", str(tmp_path / "whole")], env=env, capture_output=True, text=True,
                                timeout=600)
         assert whole.returncode == 0, whole.stderr
@@ -104,6 +106,7 @@ def test_a_node_that_dies_mid_run_loses_nothing(tmp_path):
                       if "raylet" in " ".join(p.info["cmdline"] or []) and "127.0.0.3" in " ".join(p.info["cmdline"]))
         on_node = [c.name() for c in raylet.children(recursive=True)]
         assert any("EnvWorker" in n for n in on_node), f"no environment worker on the worker node: {on_node}"
+        assert driver.poll() is None, "the run ended before the node could be killed"
         killed_at = time.time()
         raylet.kill()
         _, err = driver.communicate(timeout=900)
