@@ -65,7 +65,7 @@ def test_registered_with_34_levels_in_two_scenes():
 
 # Plans below the 0.2 robustness target (a narrow shot in a 3-shot plan): a known miss
 # (docs/environments.md, Angry Birds calibration), to redesign. Fixing one means removing it here.
-FRAGILE_PLANS = {"s2_l12"}
+FRAGILE_PLANS = {"s1_l21", "s2_l12"}
 
 
 def test_levels_have_the_reference_birds_and_stored_plans():
