@@ -176,7 +176,7 @@ def prompt_digest(messages: list[Message]) -> str:
     for m in messages:
         h.update(m.role.encode())
         for p in m.content:
-            h.update(p.text.encode() if isinstance(p, TextPart) else hashlib.sha256(p.image.load()).digest())
+            h.update(p.text.encode() if isinstance(p, TextPart) else bytes.fromhex(p.image.digest))
     return h.hexdigest()[:20]
 
 
@@ -198,7 +198,7 @@ def prompt_as_json(messages: list[Message]) -> str:
                 "role": m.role,
                 "content": [
                     p.text if isinstance(p, TextPart)
-                    else {"image": image_digest(p.image.load()), "name": p.image.name, "caption": p.image.caption}
+                    else {"image": p.image.digest, "name": p.image.name, "caption": p.image.caption}
                     for p in m.content
                 ],
             }
