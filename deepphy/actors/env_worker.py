@@ -40,7 +40,7 @@ class EnvWorkerImpl:
         self.idle: list[Environment] = []  # instances are reused: simulators are costly to build
         self.pending: list[tuple[str, Action, asyncio.Future]] = []
         self.draining = False
-        self.batches = self.steps = self.max_batch = 0
+        self.batches = self.steps = self.max_batch = self.calls = 0
 
     async def warm_up(self, tasks: Sequence[Task]) -> None:
         self.cls.warm_up(self.options, tasks)
@@ -69,6 +69,7 @@ class EnvWorkerImpl:
     async def step_batch(self, requests: Sequence[tuple[str, Action, Task | None]]) -> list[StepResult | Exception]:
         """`step` for several episodes in one call; each gets its result or its own error
         (one episode's failure, `LostEpisode` included, leaves the others' results whole)."""
+        self.calls += 1
         outcomes = await asyncio.gather(*(self.step(*request) for request in requests), return_exceptions=True)
         return [_sendable(o) if isinstance(o, BaseException) else o for o in outcomes]
 
@@ -104,9 +105,10 @@ class EnvWorkerImpl:
             self.idle.append(env)
 
     async def stats(self) -> dict[str, int]:
-        """Steps, step_many calls and the largest batch so far (batching is observable here,
-        never in records)."""
-        return {"steps": self.steps, "batches": self.batches, "max_batch": self.max_batch, "pid": os.getpid()}
+        """Steps, step_many calls, the largest batch and the step_batch calls so far (batching
+        is observable here, never in records)."""
+        return {"steps": self.steps, "batches": self.batches, "max_batch": self.max_batch, "calls": self.calls,
+                "pid": os.getpid()}
 
 
 def _sendable(error: BaseException) -> Exception:
