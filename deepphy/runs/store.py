@@ -94,7 +94,7 @@ class RunStore:
         self._lock_fd: int | None = None
         self._prompts: set[str] = set()
         self._images: set[str] = set()  # image digests known to be on disk
-        self._digests: dict[str, str] = {}  # image digest of each key frame file prompts have shown
+        self._digests: dict[str, str] = {}  # image digest of each key frame this store wrote, by file
         self._task_dirs: set[str] = set()  # frames/<task> directories known to be inside the run
         self.created = False  # this store made the directory (discard() may remove it)
         self.appended = 0  # records and errors written
@@ -279,6 +279,9 @@ class RunStore:
             atomic_write(self.path / rel, png)
         except OSError as e:
             raise _write_failed(self.path, rel, e) from None
+        if len(self._digests) >= PROMPTS_REMEMBERED:
+            self._digests.clear()
+        self._digests[str(self._root / rel)] = image_digest(png)  # while the bytes are here: later prompts show it
         return rel
 
     def write_prompt(self, digest: str, messages: list[Message]) -> None:
@@ -300,10 +303,6 @@ class RunStore:
 
     def _write_image(self, image: Image) -> None:
         digest = image.digest
-        if image.file is not None:
-            if len(self._digests) >= PROMPTS_REMEMBERED:
-                self._digests.clear()
-            self._digests[image.file] = digest
         if digest in self._images:
             return
         target = self.path / IMAGES / f"{digest}.png"
@@ -322,8 +321,8 @@ class RunStore:
     def frame_image(self, rel: str, caption: str) -> Image:
         # By file: a waiting prompt holds the path, not the bytes (read where it is encoded).
         # `rel` is a validated record's (see `problems`: checked inside the run on resume).
-        # Its digest, if an earlier prompt showed it: this run directory is ours (locked)
-        # and a recorded key frame is never rewritten.
+        # Its digest, if this store wrote it: the run directory is ours (locked) and a
+        # recorded key frame is never rewritten.
         file = str(self._root / rel)
         return Image.stored(name=rel.rsplit("/", 1)[-1], caption=caption, file=file, digest=self._digests.get(file))
 
