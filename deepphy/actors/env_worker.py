@@ -8,9 +8,9 @@ while the worker is busy are stepped together through `Environment.step_many`, s
 environment that can batch (Kinetix) does; the others step one after another. A batch
 that raises is stepped again one instance at a time, so an environment bug fails only
 the episode that hit it. The driver sends the decisions of many episodes as one call
-(`step_batch`): one Ray task instead of one per decision. A worker that dies is restarted by Ray with no instances; a call
-for an instance it no longer holds raises `LostEpisode`, and the scheduler re-runs that
-attempt.
+(`step_batch`: one Ray task, not one per decision). A worker that dies is restarted by
+Ray with no instances; a step of an instance it no longer holds raises `LostEpisode`,
+and the scheduler re-runs that attempt.
 """
 
 from __future__ import annotations
