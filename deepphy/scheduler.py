@@ -281,11 +281,14 @@ class Scheduler:
                 self.metrics.add.remote(batch)
 
     async def _send_summaries_every(self, seconds: float) -> None:
+        told: dict[str, Any] = {}
         while True:
             await asyncio.sleep(seconds)
             self.send_summaries()
-            if self.metrics is not None:
-                self.metrics.update.remote({**self.activity(), "phase": "running"})
+            activity = {**self.activity(), "phase": "running"}
+            if self.metrics is not None and activity != told:  # a Ray call only for news (a waiting run idles)
+                self.metrics.update.remote(activity)
+                told = activity
 
     async def _attempt_with_retries(
         self, task: Task, run: int, attempt: int, previous: list[AttemptRecord]

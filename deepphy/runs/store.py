@@ -96,6 +96,7 @@ class RunStore:
         self._images: set[str] = set()  # image digests known to be on disk
         self._digests: dict[str, str] = {}  # image digest of each key frame this store wrote, by file
         self._task_dirs: set[str] = set()  # frames/<task> directories known to be inside the run
+        self._prompts_dir, self._images_dir = str(self.path / PROMPTS), str(self.path / IMAGES)  # joined once
         self.created = False  # this store made the directory (discard() may remove it)
         self.appended = 0  # records and errors written
 
@@ -276,7 +277,7 @@ class RunStore:
                 if inside(self._root, f"{FRAMES}/{task}") is None:
                     raise RunDirError(f"{self.path}/{FRAMES}/{task} leads out of the run directory; refusing to write there")
                 self._task_dirs.add(task)
-            atomic_write(self.path / rel, png)
+            atomic_write(f"{self.path}/{rel}", png)
         except OSError as e:
             raise _write_failed(self.path, rel, e) from None
         if len(self._digests) >= PROMPTS_REMEMBERED:
@@ -289,9 +290,9 @@ class RunStore:
         are on disk)."""
         if digest in self._prompts:
             return
-        target = self.path / PROMPTS / f"{digest}.json"
+        target = f"{self._prompts_dir}/{digest}.json"
         try:
-            if not target.exists():
+            if not os.path.exists(target):
                 for m in messages:
                     for part in m.content:
                         if isinstance(part, ImagePart):
@@ -305,16 +306,15 @@ class RunStore:
         digest = image.digest
         if digest in self._images:
             return
-        target = self.path / IMAGES / f"{digest}.png"
-        if not target.exists():
-            tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
-            try:  # a key frame already in the run directory: a second name, not a second copy
-                if image.file is None:
-                    raise OSError("no file to link")
-                os.link(image.file, tmp)
-                os.replace(tmp, target)
-            except OSError:
-                tmp.unlink(missing_ok=True)
+        target = f"{self._images_dir}/{digest}.png"
+        try:  # a key frame already in the run directory: a second name, not a second copy
+            if image.file is None:
+                raise OSError("no file to link")
+            os.link(image.file, target)  # atomic by itself: the name comes with the whole (written) file
+        except FileExistsError:
+            pass  # stored before (content-addressed: the same bytes)
+        except OSError:
+            if not os.path.exists(target):
                 atomic_write(target, image.load())
         _remember(self._images, digest)
 
@@ -573,7 +573,7 @@ def read_prompt(path: str | Path, digest: str) -> list[Message]:
     return messages
 
 
-def atomic_write(target: Path, data: bytes) -> None:
+def atomic_write(target: str | Path, data: bytes) -> None:
     """Write to a temporary file renamed into place; the temporary file never stays behind.
     (os-level calls: a run writes several files per decision.)"""
     head, name = os.path.split(target)
