@@ -6,7 +6,9 @@ records all import it, and it imports none of them.
 
 from __future__ import annotations
 
+import hashlib
 from enum import Enum
+from functools import cached_property
 from pathlib import Path
 from typing import Literal, Union
 
@@ -49,6 +51,22 @@ class Image(BaseModel):
     def load(self) -> bytes:
         """The PNG bytes (read from `file` when the image names one)."""
         return self.png if self.file is None else Path(self.file).read_bytes()
+
+    @cached_property
+    def digest(self) -> str:
+        """The content address of the image: sha256 of its PNG bytes, hex (images/<digest>.png
+        of a run directory). Computed once per image: a prompt's digest, its stored JSON and
+        the store's image file each need it. (Not a field: kept out of dumps and equality.)"""
+        return hashlib.sha256(self.load()).hexdigest()
+
+    @classmethod
+    def stored(cls, name: str, caption: str, file: str, digest: str | None = None) -> "Image":
+        """An image by `file`, whose `digest` the caller may already know (a run store
+        remembers the images it has written): then its bytes are not read to address it."""
+        image = cls(name=name, caption=caption, file=file)
+        if digest is not None:
+            image.__dict__["digest"] = digest  # where cached_property keeps its value
+        return image
 
     def loaded(self) -> "Image":
         """This image carrying its bytes (for a reader that does not share this file system)."""

@@ -29,7 +29,7 @@ from deepphy.envs import Action, EnvSpec, Environment, InvalidAction, Observatio
 from deepphy.envs.parsing import cut_reply
 from deepphy.models.base import ModelRequest, ModelResponse, RequestContext
 from deepphy.prompts import (
-    EnvPrompt, PastAttempt, PastStep, build_messages, image_digest, prompt_as_json, prompt_digest, split_reply,
+    EnvPrompt, PastAttempt, PastStep, build_messages, prompt_as_json, prompt_digest, split_reply,
 )
 from deepphy.runs.records import AttemptRecord, KeyFrame, ModelStats, StepRecord, Timing
 
@@ -206,14 +206,14 @@ class MemoryArtifacts:
 
     def __init__(self) -> None:
         self.prompts: dict[str, str] = {}
-        self.images: dict[str, bytes] = {}  # by image_digest
+        self.images: dict[str, bytes] = {}  # by Image.digest
         self.frames: dict[str, bytes] = {}
 
     def write_prompt(self, digest: str, messages: list[Message]) -> None:
         if digest not in self.prompts:
             for image in (image for m in messages for image in m.images):
-                png = image.load()
-                self.images.setdefault(image_digest(png), png)
+                if image.digest not in self.images:
+                    self.images[image.digest] = image.load()
             self.prompts[digest] = prompt_as_json(messages)
 
     def write_frame(self, task: str, run: int, attempt: int, name: str, png: bytes) -> str:

@@ -35,6 +35,11 @@ log = logging.getLogger(__name__)
 WORKER_LOST = (LostEpisode, ActorDiedError, ActorUnavailableError, RayActorError)
 # Failures no retry can mend, that end the whole run at once (raised by `Scheduler.run`).
 FATAL = (RunWriteError, AccessDenied)
+# Decisions per environment worker call, and calls on their way per worker: the worker
+# runs one call while the next waits in its queue, so it never idles for a round trip;
+# a bounded call keeps the worker's results flowing back (measured: benchmarks/throughput.py).
+BATCH_MAX = 8
+CALLS_IN_FLIGHT = 2
 
 
 class WorkerLost(RuntimeError):
@@ -53,13 +58,70 @@ class BudgetExhausted(RuntimeError):
     """The run's cost budget (--max-cost) is spent; the attempt is left for a resume."""
 
 
-class WorkerEnv:
-    """The protocol's `EnvHandle` over one environment worker actor, for one attempt: one
-    Ray call per decision (the reset rides with the first step when the observation is
-    known; the worker releases the instance when a step ends the attempt)."""
+class StepBatcher:
+    """The decisions bound for one environment worker, sent as few Ray calls as keep it busy:
+    requests made while `CALLS_IN_FLIGHT` calls are already on their way wait, and go out
+    together (at most `BATCH_MAX` a call) when one comes back. A Ray call costs the driver
+    and the worker about a millisecond each way; an I-PHYRE decision, a dozen.
 
-    def __init__(self, worker: Any, episode: str, timeout_s: float, initial: ObservationCache) -> None:
-        self.worker, self.episode, self.timeout_s, self.initial = worker, episode, timeout_s, initial
+    Errors stay per episode: the worker answers each request with its result or its own
+    error; a call that fails as a whole (the worker died, no answer within `timeout_s`)
+    fails each of its requests."""
+
+    def __init__(self, worker: Any, timeout_s: float) -> None:
+        self.worker, self.timeout_s = worker, timeout_s
+        self.waiting: list[tuple[tuple[str, Action, Task | None], asyncio.Future]] = []
+        self.calls = 0  # calls on their way
+        self.in_flight: set[asyncio.Task] = set()
+
+    def step(self, episode: str, action: Action, reset: Task | None) -> asyncio.Future:
+        future = asyncio.get_running_loop().create_future()
+        self.waiting.append(((episode, action, reset), future))
+        if len(self.waiting) == 1:  # the first of this loop turn: send after the turn's other requests
+            asyncio.get_running_loop().call_soon(self._send)
+        return future
+
+    def _send(self) -> None:
+        self.waiting = [w for w in self.waiting if not w[1].done()]  # their attempts were cancelled meanwhile
+        while self.waiting and self.calls < CALLS_IN_FLIGHT:
+            batch, self.waiting = self.waiting[:BATCH_MAX], self.waiting[BATCH_MAX:]
+            self.calls += 1
+            call = asyncio.ensure_future(self._call(batch))
+            self.in_flight.add(call)  # a task the loop holds only weakly
+            call.add_done_callback(self.in_flight.discard)
+
+    async def _call(self, batch: list[tuple[tuple[str, Action, Task | None], asyncio.Future]]) -> None:
+        ref = self.worker.step_batch.remote([request for request, _ in batch])
+        try:
+            outcomes = await asyncio.wait_for(ref, timeout=self.timeout_s)
+        except WORKER_LOST as e:
+            outcomes = [WorkerLost(type(e).__name__) for _ in batch]
+        except asyncio.TimeoutError:
+            ray.cancel(ref, force=False)
+            outcomes = [WorkerLost(f"no answer within {self.timeout_s:g} s") for _ in batch]
+        except Exception as e:  # noqa: BLE001 - the call as a whole failed: each of its attempts says so
+            outcomes = [e for _ in batch]
+        finally:
+            self.calls -= 1
+            self._send()
+        for (_, future), outcome in zip(batch, outcomes):
+            if future.done():  # its attempt was cancelled
+                continue
+            if isinstance(outcome, LostEpisode):
+                future.set_exception(WorkerLost(type(outcome).__name__))
+            elif isinstance(outcome, BaseException):
+                future.set_exception(outcome)
+            else:
+                future.set_result(outcome)
+
+
+class WorkerEnv:
+    """The protocol's `EnvHandle` over one environment worker, for one attempt: each decision
+    goes through the worker's `StepBatcher` (the reset rides with the first step when the
+    observation is known; the worker releases the instance when a step ends the attempt)."""
+
+    def __init__(self, batcher: StepBatcher, episode: str, initial: ObservationCache) -> None:
+        self.batcher, self.worker, self.episode, self.initial = batcher, batcher.worker, episode, initial
         self.pending_reset: Task | None = None
         self.held = False  # the worker holds an instance for this attempt
 
@@ -69,13 +131,20 @@ class WorkerEnv:
             self.pending_reset = task
             return known
         self.held = True
-        obs = await self._call(self.worker.reset.remote(self.episode, task))
+        ref = self.worker.reset.remote(self.episode, task)
+        try:
+            obs = await asyncio.wait_for(ref, timeout=self.batcher.timeout_s)
+        except WORKER_LOST as e:
+            raise WorkerLost(type(e).__name__) from e
+        except asyncio.TimeoutError:
+            ray.cancel(ref, force=False)
+            raise WorkerLost(f"no answer within {self.batcher.timeout_s:g} s") from None
         return self.initial.put(task.id, obs)
 
     async def step(self, action: Action) -> StepResult:
         reset, self.pending_reset = self.pending_reset, None
         self.held = True
-        result = await self._call(self.worker.step.remote(self.episode, action, reset))
+        result = await self.batcher.step(self.episode, action, reset)
         self.held = not result.done
         return result
 
@@ -87,15 +156,6 @@ class WorkerEnv:
             self.worker.release.remote(self.episode)
         except Exception:  # noqa: BLE001 - a dead worker holds nothing to release
             pass
-
-    async def _call(self, ref: Any) -> Any:
-        try:
-            return await asyncio.wait_for(ref, timeout=self.timeout_s)
-        except WORKER_LOST as e:
-            raise WorkerLost(type(e).__name__) from e
-        except asyncio.TimeoutError:
-            ray.cancel(ref, force=False)
-            raise WorkerLost(f"no answer within {self.timeout_s:g} s") from None
 
 
 class WorkerModel:
@@ -138,6 +198,7 @@ class Scheduler:
         self.store = store
         self.env_workers = env_workers
         self.load = [0] * len(env_workers)  # live episodes per worker
+        self.batchers = [StepBatcher(w, runtime.step_timeout_s) for w in env_workers]
         self.model = model
         self.metrics = metrics
         self.k_max = k_max
@@ -220,11 +281,14 @@ class Scheduler:
                 self.metrics.add.remote(batch)
 
     async def _send_summaries_every(self, seconds: float) -> None:
+        told: dict[str, Any] = {}
         while True:
             await asyncio.sleep(seconds)
             self.send_summaries()
-            if self.metrics is not None:
-                self.metrics.update.remote({**self.activity(), "phase": "running"})
+            activity = {**self.activity(), "phase": "running"}
+            if self.metrics is not None and activity != told:  # a Ray call only for news (a waiting run idles)
+                self.metrics.update.remote(activity)
+                told = activity
 
     async def _attempt_with_retries(
         self, task: Task, run: int, attempt: int, previous: list[AttemptRecord]
@@ -259,8 +323,7 @@ class Scheduler:
             return await run_attempt(self.spec, self.prompt, self.config, task, run, attempt, previous,
                                      self.local_env, self, self.store)
         index = min(range(len(self.env_workers)), key=lambda i: self.load[i])
-        env = WorkerEnv(self.env_workers[index], f"{task.id}|{run}|{attempt}|{time.monotonic_ns()}",
-                        self.runtime.step_timeout_s, self.initial)
+        env = WorkerEnv(self.batchers[index], f"{task.id}|{run}|{attempt}|{time.monotonic_ns()}", self.initial)
         self.load[index] += 1
         try:
             return await run_attempt(self.spec, self.prompt, self.config, task, run, attempt, previous,

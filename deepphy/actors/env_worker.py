@@ -7,15 +7,18 @@ observation: reset is deterministic). Step requests that arrive
 while the worker is busy are stepped together through `Environment.step_many`, so an
 environment that can batch (Kinetix) does; the others step one after another. A batch
 that raises is stepped again one instance at a time, so an environment bug fails only
-the episode that hit it. A worker that dies is restarted by Ray with no instances; a call
-for an instance it no longer holds raises `LostEpisode`, and the scheduler re-runs that
-attempt.
+the episode that hit it. The driver sends the decisions of many episodes as one call
+(`step_batch`: one Ray task, not one per decision). A worker that dies is restarted by
+Ray with no instances; a step of an instance it no longer holds raises `LostEpisode`,
+and the scheduler re-runs that attempt.
 """
 
 from __future__ import annotations
 
 import asyncio
 import os
+import pickle
+import traceback
 from typing import Any, Sequence
 
 import ray
@@ -37,7 +40,7 @@ class EnvWorkerImpl:
         self.idle: list[Environment] = []  # instances are reused: simulators are costly to build
         self.pending: list[tuple[str, Action, asyncio.Future]] = []
         self.draining = False
-        self.batches = self.steps = self.max_batch = 0
+        self.batches = self.steps = self.max_batch = self.calls = 0
 
     async def warm_up(self, tasks: Sequence[Task]) -> None:
         self.cls.warm_up(self.options, tasks)
@@ -62,6 +65,13 @@ class EnvWorkerImpl:
         if result.done:
             await self.release(episode)
         return result
+
+    async def step_batch(self, requests: Sequence[tuple[str, Action, Task | None]]) -> list[StepResult | Exception]:
+        """`step` for several episodes in one call; each gets its result or its own error
+        (one episode's failure, `LostEpisode` included, leaves the others' results whole)."""
+        self.calls += 1
+        outcomes = await asyncio.gather(*(self.step(*request) for request in requests), return_exceptions=True)
+        return [_sendable(o) if isinstance(o, BaseException) else o for o in outcomes]
 
     def _drain(self) -> None:
         if self.batches_steps:
@@ -95,9 +105,25 @@ class EnvWorkerImpl:
             self.idle.append(env)
 
     async def stats(self) -> dict[str, int]:
-        """Steps, step_many calls and the largest batch so far (batching is observable here,
-        never in records)."""
-        return {"steps": self.steps, "batches": self.batches, "max_batch": self.max_batch, "pid": os.getpid()}
+        """Steps, step_many calls, the largest batch and the step_batch calls so far (batching
+        is observable here, never in records)."""
+        return {"steps": self.steps, "batches": self.batches, "max_batch": self.max_batch, "calls": self.calls,
+                "pid": os.getpid()}
+
+
+def _sendable(error: BaseException) -> Exception:
+    """`error` ready to travel back in a list (not as Ray's task error): its traceback in
+    this worker kept as a note (the driver logs it), or a RuntimeError naming it if it
+    cannot be pickled."""
+    where = "".join(traceback.format_exception(error))
+    if isinstance(error, Exception):
+        try:
+            error.add_note(f"in the environment worker:\n{where}")
+            pickle.loads(pickle.dumps(error))
+            return error
+        except Exception:  # noqa: BLE001 - an exception type that cannot cross processes
+            pass
+    return RuntimeError(f"{type(error).__name__}: {error}\nin the environment worker:\n{where}")
 
 
 def _redirect_output(log_path: str | None) -> None:

@@ -93,34 +93,48 @@ def build_messages(
         if fmt is PromptFormat.VLA
         else _wm_instructions(example, prompt.prediction_hint())
     )
-    system = Message(role="system", content=[TextPart(text=prompt.rules(task, observation) + "\n\n" + instructions)])
+    system = _message("system", [_text(prompt.rules(task, observation) + "\n\n" + instructions)])
 
     parts: list[TextPart | ImagePart] = []
     if history:
-        parts.append(TextPart(text=f"Your previous {len(history)} attempt(s) at this task failed:"))
+        parts.append(_text(f"Your previous {len(history)} attempt(s) at this task failed:"))
         for past in history:
             acts = "; ".join(past.actions) if past.actions else "(none)"
-            parts.append(TextPart(text=f"Attempt {past.attempt}: action(s) {acts}. Outcome: {past.outcome}"))
+            parts.append(_text(f"Attempt {past.attempt}: action(s) {acts}. Outcome: {past.outcome}"))
             for frame in past.key_frames:
-                parts.append(TextPart(text=f"Attempt {past.attempt}, {frame.caption}:"))
-                parts.append(ImagePart(image=frame))
-        parts.append(TextPart(text="Every attempt starts again from the same initial state."))
+                parts.append(_text(f"Attempt {past.attempt}, {frame.caption}:"))
+                parts.append(_image(frame))
+        parts.append(_text("Every attempt starts again from the same initial state."))
     shown = list(recent)[-prompt.recent_steps_shown :]
     if shown:
-        parts.append(TextPart(text="Your earlier decisions in this attempt, oldest first:"))
+        parts.append(_text("Your earlier decisions in this attempt, oldest first:"))
         for past in shown:
             line = f"Step {past.step}: {past.action}"
-            parts.append(TextPart(text=line + (f" -> {past.feedback}" if past.feedback else "")))
+            parts.append(_text(line + (f" -> {past.feedback}" if past.feedback else "")))
             if past.frame is not None:
-                parts.append(ImagePart(image=past.frame))
-    parts.append(TextPart(text=CURRENT_OBSERVATION))
+                parts.append(_image(past.frame))
+    parts.append(_text(CURRENT_OBSERVATION))
     for image in observation.images:
-        parts.append(TextPart(text=image.caption))
-        parts.append(ImagePart(image=image))
+        parts.append(_text(image.caption))
+        parts.append(_image(image))
     if observation.text:
-        parts.append(TextPart(text=observation.text))
-    parts.append(TextPart(text="Your action:" if fmt is PromptFormat.VLA else "Your prediction and action:"))
-    return [system, Message(role="user", content=parts)]
+        parts.append(_text(observation.text))
+    parts.append(_text("Your action:" if fmt is PromptFormat.VLA else "Your prediction and action:"))
+    return [system, _message("user", parts)]
+
+
+# A prompt is rebuilt for every decision from parts that are already valid (our strings,
+# Images validated where they were made): constructed without validating them again.
+def _text(text: str) -> TextPart:
+    return TextPart.model_construct(text=text)
+
+
+def _image(image: Image) -> ImagePart:
+    return ImagePart.model_construct(image=image)
+
+
+def _message(role: str, content: list[TextPart | ImagePart]) -> Message:
+    return Message.model_construct(role=role, content=content)
 
 
 OUTCOMES = ("success", "failure")
@@ -176,7 +190,7 @@ def prompt_digest(messages: list[Message]) -> str:
     for m in messages:
         h.update(m.role.encode())
         for p in m.content:
-            h.update(p.text.encode() if isinstance(p, TextPart) else hashlib.sha256(p.image.load()).digest())
+            h.update(p.text.encode() if isinstance(p, TextPart) else bytes.fromhex(p.image.digest))
     return h.hexdigest()[:20]
 
 
@@ -198,7 +212,7 @@ def prompt_as_json(messages: list[Message]) -> str:
                 "role": m.role,
                 "content": [
                     p.text if isinstance(p, TextPart)
-                    else {"image": image_digest(p.image.load()), "name": p.image.name, "caption": p.image.caption}
+                    else {"image": p.image.digest, "name": p.image.name, "caption": p.image.caption}
                     for p in m.content
                 ],
             }

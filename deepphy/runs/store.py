@@ -94,7 +94,9 @@ class RunStore:
         self._lock_fd: int | None = None
         self._prompts: set[str] = set()
         self._images: set[str] = set()  # image digests known to be on disk
+        self._digests: dict[str, str] = {}  # image digest of each key frame this store wrote, by file
         self._task_dirs: set[str] = set()  # frames/<task> directories known to be inside the run
+        self._prompts_dir, self._images_dir = str(self.path / PROMPTS), str(self.path / IMAGES)  # joined once
         self.created = False  # this store made the directory (discard() may remove it)
         self.appended = 0  # records and errors written
 
@@ -275,9 +277,12 @@ class RunStore:
                 if inside(self._root, f"{FRAMES}/{task}") is None:
                     raise RunDirError(f"{self.path}/{FRAMES}/{task} leads out of the run directory; refusing to write there")
                 self._task_dirs.add(task)
-            atomic_write(self.path / rel, png)
+            atomic_write(f"{self.path}/{rel}", png)
         except OSError as e:
             raise _write_failed(self.path, rel, e) from None
+        if len(self._digests) >= PROMPTS_REMEMBERED:
+            self._digests.clear()
+        self._digests[str(self._root / rel)] = image_digest(png)  # while the bytes are here: later prompts show it
         return rel
 
     def write_prompt(self, digest: str, messages: list[Message]) -> None:
@@ -285,9 +290,9 @@ class RunStore:
         are on disk)."""
         if digest in self._prompts:
             return
-        target = self.path / PROMPTS / f"{digest}.json"
+        target = f"{self._prompts_dir}/{digest}.json"
         try:
-            if not target.exists():
+            if not os.path.exists(target):
                 for m in messages:
                     for part in m.content:
                         if isinstance(part, ImagePart):
@@ -295,34 +300,37 @@ class RunStore:
                 atomic_write(target, prompt_as_json(messages).encode())
         except OSError as e:
             raise _write_failed(self.path, f"{PROMPTS}/{digest}.json", e) from None
-        if len(self._prompts) >= PROMPTS_REMEMBERED:  # bounded: a long run's memory stays flat
-            self._prompts.clear()
-        self._prompts.add(digest)
+        _remember(self._prompts, digest)
 
     def _write_image(self, image: Image) -> None:
-        png = image.load()
-        digest = image_digest(png)
+        digest = image.digest
         if digest in self._images:
             return
-        target = self.path / IMAGES / f"{digest}.png"
-        if not target.exists():
-            tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
-            try:  # a key frame already in the run directory: a second name, not a second copy
-                if image.file is None:
-                    raise OSError("no file to link")
-                os.link(image.file, tmp)
-                os.replace(tmp, target)
-            except OSError:
-                tmp.unlink(missing_ok=True)
-                atomic_write(target, png)
-        if len(self._images) >= PROMPTS_REMEMBERED:
-            self._images.clear()
-        self._images.add(digest)
+        target = f"{self._images_dir}/{digest}.png"
+        try:  # a key frame already in the run directory: a second name, not a second copy
+            if image.file is None:
+                raise OSError("no file to link")
+            os.link(image.file, target)  # atomic by itself: the name comes with the whole (written) file
+        except FileExistsError:
+            pass  # stored before (content-addressed: the same bytes)
+        except OSError:
+            if not os.path.exists(target):
+                atomic_write(target, image.load())
+        _remember(self._images, digest)
 
     def frame_image(self, rel: str, caption: str) -> Image:
         # By file: a waiting prompt holds the path, not the bytes (read where it is encoded).
         # `rel` is a validated record's (see `problems`: checked inside the run on resume).
-        return Image(name=rel.rsplit("/", 1)[-1], caption=caption, file=str(self._root / rel))
+        # Its digest, if this store wrote it: the run directory is ours (locked) and a
+        # recorded key frame is never rewritten.
+        file = str(self._root / rel)
+        return Image.stored(name=rel.rsplit("/", 1)[-1], caption=caption, file=file, digest=self._digests.get(file))
+
+
+def _remember(known: set[str], digest: str) -> None:
+    if len(known) >= PROMPTS_REMEMBERED:  # bounded: a long run's memory stays flat
+        known.clear()
+    known.add(digest)
 
 
 # -- reading (no lock needed: the log only grows by whole lines) ---------------------
@@ -565,15 +573,25 @@ def read_prompt(path: str | Path, digest: str) -> list[Message]:
     return messages
 
 
-def atomic_write(target: Path, data: bytes) -> None:
-    """Write to a temporary file renamed into place; the temporary file never stays behind."""
-    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+def atomic_write(target: str | Path, data: bytes) -> None:
+    """Write to a temporary file renamed into place; the temporary file never stays behind.
+    (os-level calls: a run writes several files per decision.)"""
+    head, name = os.path.split(target)
+    tmp = os.path.join(head, f".{name}.{os.getpid()}.tmp")
     try:
-        with open(tmp, "wb") as f:
-            f.write(data)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view):]
+        finally:
+            os.close(fd)
         os.replace(tmp, target)
     except BaseException:
-        tmp.unlink(missing_ok=True)
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
         raise
 
 
