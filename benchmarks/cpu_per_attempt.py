@@ -35,9 +35,8 @@ import psutil
 
 from deepphy.chat import Image
 from deepphy.config import RunConfig
-from deepphy.protocol import MemoryArtifacts, run_attempt
+from deepphy.protocol import MemoryArtifacts, run_episode
 from deepphy.runner import resolve
-from deepphy.runs.records import episode_finished
 
 # The drawing functions of each environment (module, attribute path): their CPU is "render".
 RENDERERS = {
@@ -140,11 +139,7 @@ async def env_work(config: RunConfig) -> tuple[int, dict[str, float], float]:
     with instrumented(config.env, clock):
         for run in range(config.runs):
             for task in tasks:
-                records = []
-                while not episode_finished(records, k_max):
-                    records.append(await run_attempt(spec, prompt, config, task, run, len(records) + 1, records,
-                                                     env, model, store))
-                attempts += len(records)
+                attempts += len(await run_episode(spec, prompt, config, task, run, k_max, env, model, store))
     return attempts, dict(clock.seconds), time.process_time() - t0
 
 

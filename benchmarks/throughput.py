@@ -18,9 +18,8 @@ import time
 
 from deepphy.agents import make_agent
 from deepphy.config import RunConfig, RuntimeOptions
-from deepphy.protocol import LocalEnv, run_attempt
+from deepphy.protocol import LocalEnv, run_episode
 from deepphy.runner import ensure_ray, evaluate, resolve
-from deepphy.runs.records import episode_finished
 from deepphy.runs.store import RunStore, read_records
 
 
@@ -35,12 +34,8 @@ async def plain_loop(config: RunConfig, out: str) -> tuple[int, float]:
     with RunStore.create_or_resume(out, config) as store:
         for run in range(config.runs):
             for task in tasks:
-                records = []
-                while not episode_finished(records, k_max):
-                    records.append(await run_attempt(spec, prompt, config, task, run, len(records) + 1, records,
-                                                     env, model, store))
-                    store.append(records[-1])
-                attempts += len(records)
+                attempts += len(await run_episode(spec, prompt, config, task, run, k_max, env, model, store,
+                                                  on_record=store.append))
     return attempts, time.perf_counter() - start
 
 

@@ -151,13 +151,12 @@ def _key(config: RunConfig, sample: int) -> str:
 
 def baseline_requests(config: RunConfig, sample: int = DEFAULT_SAMPLE) -> list[int]:
     """Requests MOCK makes in an episode of each of `config`'s first `sample` tasks (its
-    run 0 at the config's seed), played in-process through `deepphy.protocol.run_attempt`."""
+    run 0 at the config's seed), played in-process through `deepphy.protocol.run_episode`."""
     import asyncio
 
     from deepphy.agents import MockModel
-    from deepphy.protocol import LocalEnv, MemoryArtifacts, run_attempt
+    from deepphy.protocol import LocalEnv, MemoryArtifacts, run_episode
     from deepphy.runner import resolve
-    from deepphy.runs.records import episode_finished
 
     key = _key(config, sample)
     if key in _baseline:
@@ -169,10 +168,7 @@ def baseline_requests(config: RunConfig, sample: int = DEFAULT_SAMPLE) -> list[i
     config = config.model_copy(update={"model": "mock"})
 
     async def episode(task) -> int:
-        records = []
-        while not episode_finished(records, k_max):
-            records.append(await run_attempt(spec, prompt, config, task, 0, len(records) + 1, records, env, mock,
-                                             artifacts))
+        records = await run_episode(spec, prompt, config, task, 0, k_max, env, mock, artifacts)
         return sum(r.summary().decisions for r in records)
 
     _baseline[key] = [asyncio.run(episode(task)) for task in tasks[:sample]]

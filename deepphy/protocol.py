@@ -21,7 +21,7 @@ and benchmarks run the very same code in-process (`LocalEnv`, `MemoryArtifacts`)
 from __future__ import annotations
 
 import time
-from typing import Protocol, Sequence
+from typing import Callable, Protocol, Sequence
 
 from deepphy.chat import Image, Message
 from deepphy.config import RunConfig
@@ -31,7 +31,7 @@ from deepphy.models.base import ModelRequest, ModelResponse, RequestContext
 from deepphy.prompts import (
     EnvPrompt, PastAttempt, PastStep, build_messages, prompt_as_json, prompt_digest, split_reply,
 )
-from deepphy.runs.records import AttemptRecord, KeyFrame, ModelStats, StepRecord, Timing
+from deepphy.runs.records import AttemptRecord, KeyFrame, ModelStats, StepRecord, Timing, episode_finished
 
 
 class EnvHandle(Protocol):
@@ -151,6 +151,31 @@ async def run_attempt(
         key_frames=frames, feedback=outcome_words(success, invalid_reason, result, len(steps)),
         timing=timing, model_stats=stats,
     )
+
+
+async def run_episode(
+    spec: EnvSpec,
+    prompt: EnvPrompt,
+    config: RunConfig,
+    task: Task,
+    run: int,
+    k_max: int,
+    env: EnvHandle,
+    model: ModelHandle,
+    artifacts: Artifacts,
+    on_record: Callable[[AttemptRecord], None] | None = None,
+) -> list[AttemptRecord]:
+    """Every attempt of one episode (`task`, repetition `run`), one after another in this
+    process, until it is finished (solved, or `k_max` attempts): the plain loop that tests,
+    benchmarks and estimates run (the scheduler adds placement and retries around
+    `run_attempt`). `on_record` sees each record as it is made (e.g. a store's `append`)."""
+    records: list[AttemptRecord] = []
+    while not episode_finished(records, k_max):
+        record = await run_attempt(spec, prompt, config, task, run, len(records) + 1, records, env, model, artifacts)
+        if on_record is not None:
+            on_record(record)
+        records.append(record)
+    return records
 
 
 # -- the history policy ------------------------------------------------------------------

@@ -13,9 +13,9 @@ from deepphy.config import RunConfig
 from deepphy.models.base import ModelRequest, ModelResponse
 from deepphy.play.server import serve
 from deepphy.play.session import PlaySession
-from deepphy.protocol import LocalEnv, run_attempt
+from deepphy.protocol import LocalEnv, run_episode
 from deepphy.runner import resolve
-from deepphy.runs.records import AttemptRecord, episode_finished
+from deepphy.runs.records import AttemptRecord
 from deepphy.runs.store import RunStore, read_records
 
 
@@ -78,12 +78,7 @@ def model_run(config: RunConfig, out: Path, reply: Callable[[str, int, int, int]
         with RunStore.create_or_resume(out, config) as store:
             for run in range(config.runs):
                 for task in tasks:
-                    records: list[AttemptRecord] = []
-                    while not episode_finished(records, k_max):
-                        record = await run_attempt(spec, prompt, config, task, run, len(records) + 1, records, env,
-                                                   model, store)
-                        store.append(record)
-                        records.append(record)
+                    await run_episode(spec, prompt, config, task, run, k_max, env, model, store, on_record=store.append)
 
     with ThreadPoolExecutor(1) as pool:  # a thread of its own: Playwright's sync API holds this one's loop
         pool.submit(asyncio.run, play()).result()
