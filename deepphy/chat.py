@@ -24,6 +24,11 @@ from pydantic import BaseModel, ConfigDict, model_validator
 PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 3, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE]
 
 
+def image_digest(png: bytes) -> str:
+    """The content address of an image: sha256 of its PNG bytes, hex (images/<digest>.png)."""
+    return hashlib.sha256(png).hexdigest()
+
+
 class Image(BaseModel):
     """A named RGB image, PNG-encoded once where it is rendered. `caption` says what it
     shows (it goes into the prompt).
@@ -57,7 +62,7 @@ class Image(BaseModel):
         """The content address of the image: sha256 of its PNG bytes, hex (images/<digest>.png
         of a run directory). Computed once per image: a prompt's digest, its stored JSON and
         the store's image file each need it. (Not a field: kept out of dumps and equality.)"""
-        return hashlib.sha256(self.load()).hexdigest()
+        return image_digest(self.load())
 
     @classmethod
     def stored(cls, name: str, caption: str, file: str, digest: str | None = None) -> "Image":

@@ -17,7 +17,7 @@ from typing import ClassVar, NamedTuple, Sequence
 
 from pydantic import BaseModel, Field
 
-from deepphy.chat import Image, ImagePart, Message, PromptFormat, TextPart
+from deepphy.chat import Image, ImagePart, Message, PromptFormat, TextPart, image_digest  # noqa: F401 (re-exported)
 from deepphy.envs.base import Observation, Task
 
 
@@ -192,11 +192,6 @@ def prompt_digest(messages: list[Message]) -> str:
         for p in m.content:
             h.update(p.text.encode() if isinstance(p, TextPart) else bytes.fromhex(p.image.digest))
     return h.hexdigest()[:20]
-
-
-def image_digest(png: bytes) -> str:
-    """The content address of an image: sha256 of its PNG bytes (images/<digest>.png)."""
-    return hashlib.sha256(png).hexdigest()
 
 
 def prompt_as_json(messages: list[Message]) -> str:
