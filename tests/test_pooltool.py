@@ -299,3 +299,33 @@ def test_random_games_keep_the_table_consistent(env):
             assert d.min() > 2 * R - 1e-9
             if r.done:
                 break
+
+
+def test_warm_up_waits_for_a_compiling_worker_only_until_the_cache_is_filled(tmp_path, monkeypatch):
+    """A cold cache: warm-ups take turns under the lock (one compiles, the others load what it
+    wrote). Once a warm-up has filled the cache, the others load at once (no lock held)."""
+    import fcntl
+    import threading
+
+    from deepphy.envs.pooltool import sim
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    breaks = []
+    monkeypatch.setattr(sim, "_break", lambda pt: breaks.append(1))
+
+    def warm_up_while_another_holds_the_lock() -> bool:
+        """Whether a warm-up finished while another process's warm-up held the lock."""
+        with open(tmp_path / "pooltool-warm-up.lock", "w") as held:
+            fcntl.flock(held, fcntl.LOCK_EX)
+            worker = threading.Thread(target=sim.warm_up.__wrapped__, daemon=True)
+            worker.start()
+            worker.join(timeout=1.0)
+            finished = not worker.is_alive()
+        worker.join(timeout=30)
+        assert not worker.is_alive()
+        return finished
+
+    assert not warm_up_while_another_holds_the_lock()  # cold: it waited for the lock
+    assert len(breaks) == 1 and [p.name for p in tmp_path.glob("*.done")]
+    assert warm_up_while_another_holds_the_lock()  # filled: no waiting
+    assert len(breaks) == 2

@@ -60,24 +60,37 @@ def _engine():
 def warm_up() -> None:
     """Compile (or load from the shared cache) pooltool's kernels by simulating one break.
 
-    Under an exclusive file lock in the cache directory: when several workers start on a
-    cold machine, one compiles and writes the cache while the others wait and then load
-    it, so the compile cost is paid once per machine. Later shots that reach a kernel the
-    break did not use compile it once and add it to the same cache.
+    On a cold cache, under an exclusive file lock in the cache directory: when several
+    workers start on a cold machine, one compiles and writes the cache while the others
+    wait and then load it, so the compile cost is paid once per machine. A marker left by
+    that first warm-up (named by pooltool's and numba's versions) says the cache is filled:
+    from then on the workers load the kernels at once rather than one after another (about
+    a second each). Later shots that reach a kernel the break did not use compile it once
+    and add it to the same cache.
     """
     import fcntl
+    from importlib.metadata import version
 
     pt = _pt()
-    lock_path = configure_numba_cache() / "pooltool-warm-up.lock"
-    lock_path.parent.mkdir(parents=True, exist_ok=True)
-    with open(lock_path, "w") as lock:
+    cache = configure_numba_cache()
+    cache.mkdir(parents=True, exist_ok=True)
+    filled = cache / f"pooltool-warm-up-{version('pooltool-billiards')}-{version('numba')}.done"
+    if filled.exists():
+        _break(pt)
+        return
+    with open(cache / "pooltool-warm-up.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         try:
-            system = build_system(0)
-            system.strike(V0=SPEEDS["High"], phi=pt.aim.at_ball(system, "1"), theta=0.0, a=0.0, b=0.0)
-            pt.simulate(system, engine=_engine(), inplace=True, max_events=MAX_EVENTS)
+            _break(pt)
+            filled.touch()
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def _break(pt) -> None:
+    system = build_system(0)
+    system.strike(V0=SPEEDS["High"], phi=pt.aim.at_ball(system, "1"), theta=0.0, a=0.0, b=0.0)
+    pt.simulate(system, engine=_engine(), inplace=True, max_events=MAX_EVENTS)
 
 
 # -- racks ----------------------------------------------------------------------------
