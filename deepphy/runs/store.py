@@ -20,10 +20,11 @@ its frames are on disk. A run killed mid-write leaves at most a torn last line; 
 the store drops it (it has no newline) before appending again, so every (task, run,
 attempt) appears exactly once. An episode's prompt log is appended to the same way; its
 torn tail is cut the first time a resume appends to it (that prompt belongs to an attempt
-with no record, which the resume runs again), and readers skip it. A write that fails (disk full, read-only file system, no permission) stops the run
-with `RunWriteError`: a short record or prompt line is cut off again and a frame or image
-is written to a temporary file renamed into place, so what is on disk stays whole and the
-next resume goes on from it.
+with no record, which the resume runs again), and readers skip it. A write that fails
+(disk full, read-only file system, no permission) stops the run with `RunWriteError`: a
+short record or prompt line is cut off again and a frame or image is written to a
+temporary file renamed into place, so what is on disk stays whole and the next resume
+goes on from it.
 
 A run directory is untrusted input (someone may hand you one): everything read from it is
 confined to it (`inside`: the resolved path, symlinks followed, must stay in the
@@ -50,9 +51,9 @@ from pydantic import ValidationError
 
 from deepphy.chat import Image, ImagePart, Message, TextPart
 from deepphy.config import RunConfig
+from deepphy.envs.base import SAFE_ID
 from deepphy.messages import validation_message
 from deepphy.prompts import image_digest, prompt_as_json
-from deepphy.envs.base import SAFE_ID
 from deepphy.runs.records import DIGEST, AttemptRecord, episode_finished
 
 PROMPTS_REMEMBERED = 10_000  # prompts and images known to be on disk without asking the file system
