@@ -25,9 +25,9 @@ def pixels(png: bytes) -> np.ndarray:
     return Image(name="x", caption="", png=png).to_array()
 
 
-def prompt_content(run: Path, digest: str) -> list:
+def prompt_content(run_dir: Path, task: str, run: int, digest: str) -> list:
     out = []
-    for m in read_prompt(run, digest):
+    for m in read_prompt(run_dir, task, run, digest):
         out.append(m.role)
         for part in m.content:
             if isinstance(part, TextPart):
@@ -56,7 +56,7 @@ def differences(a: Path, b: Path) -> list[str]:
             if not np.array_equal(pixels((a / fx.path).read_bytes()), pixels((b / fy.path).read_bytes())):
                 found.append(f"{where}: key frame {fx.path} differs")
         for sx, sy in zip(x.steps, y.steps):
-            if prompt_content(a, sx.prompt) != prompt_content(b, sy.prompt):
+            if prompt_content(a, x.task, x.run, sx.prompt) != prompt_content(b, y.task, y.run, sy.prompt):
                 found.append(f"{where} step {sx.step}: prompts differ")
     return found
 

@@ -26,8 +26,8 @@ from deepphy.envs.base import Planning
 from deepphy.runs.records import AttemptRecord, KeyFrame
 from deepphy.prompts.base import CURRENT_OBSERVATION
 from deepphy.runs.store import (
-    FRAMES, OLD_IMAGE_PLACEHOLDER, PROMPTS, RunDirError, check_records, image_file, inside, load_stored_prompt,
-    read_config, read_records, stored_image,
+    FRAMES, OLD_IMAGE_PLACEHOLDER, RunDirError, check_records, episode_prompts, image_file, inside, read_config,
+    read_records, stored_image, stored_prompt_json,
 )
 
 DATA_FILE = "data/decisions.parquet"
@@ -56,7 +56,8 @@ FIELDS: list[tuple[str, pa.DataType, str]] = [
     ("model", pa.string(), "model name"),
     ("format", pa.string(), "prompt format: vla (action only) or wm (prediction, then action)"),
     ("seed", pa.int64(), "the run's seed"),
-    ("prompt_digest", pa.string(), "content hash of the prompt (prompts/<digest>.json in the run directory)"),
+    ("prompt_digest", pa.string(), "content hash of the prompt (a line of prompts/<task>/r<run>.jsonl in the run "
+                                   "directory; prompts/<digest>.json in runs before those logs)"),
     ("prompt", pa.list_(MESSAGE), "the chat messages; image parts carry a relative path when the image is stored"),
     ("images", pa.list_(pa.string()), "relative paths of the prompt's stored images, in order"),
     ("observation_images", pa.list_(pa.string()),
@@ -180,13 +181,12 @@ class _Prompt:
     missing: int
 
 
-def _prompt(run_dir: Path, task: str, digest: str, images: _Images, cache: dict) -> _Prompt:
+def _prompt(run_dir: Path, task: str, run: int, digest: str, logged: dict[str, list], images: _Images,
+            cache: dict) -> _Prompt:
+    """Prompt `digest` of episode (task, run), whose log is `logged` (see episode_prompts);
+    `cache` holds the prompts made so far, by digest (the same prompt in two episodes is one)."""
     if digest not in cache:
-        rel = f"{PROMPTS}/{digest}.json"
-        path = inside(run_dir, rel)  # the digest is a validated record's
-        if path is None:
-            raise RunDirError(f"{run_dir}: {rel} leads out of the run directory; refusing to read it")
-        messages = load_stored_prompt(run_dir, path, digest)
+        messages = stored_prompt_json(run_dir, task, run, digest, logged)
         found = _Prompt([], [], [], [], 0)
         current = False  # past the current observation's heading
         for m in messages:
@@ -227,10 +227,13 @@ def rows_of(run_dir: Path, source: str, staging: Path, layout: str = "decisions"
     records = read_records(run_dir)
     check_records(run_dir, records, resolve(read_config(run_dir))[2], frames=False)  # no duplicated attempts
     records.sort(key=lambda r: (r.task, r.run, r.attempt))
+    episode: tuple[str, int] | None = None
     for r in records:
+        if episode != (r.task, r.run):  # each episode's prompt log read once
+            episode, logged = (r.task, r.run), episode_prompts(run_dir, r.task, r.run)
         for i, s in enumerate(r.steps):
             last = i == len(r.steps) - 1
-            prompt = _prompt(run_dir, r.task, s.prompt, images, prompts)
+            prompt = _prompt(run_dir, r.task, r.run, s.prompt, logged, images, prompts)
             frames = _frames_of_step(r, s.step, last) if layout == "decisions" else []  # chat: inputs only
             usage = r.model_stats.usage
             row = {

@@ -49,8 +49,9 @@ class ModelHandle(Protocol):
 class Artifacts(Protocol):
     """Where an attempt's prompts and key frames go (the run store, or memory)."""
 
-    def write_prompt(self, digest: str, messages: list[Message]) -> None:
-        """The prompt and every image in it, each stored once (content-addressed)."""
+    def write_prompt(self, task: str, run: int, digest: str, messages: list[Message]) -> None:
+        """The prompt, once per episode (task, run), and every image in it, once
+        (content-addressed)."""
         ...
 
     def write_frame(self, task: str, run: int, attempt: int, name: str, png: bytes) -> str: ...
@@ -91,7 +92,7 @@ async def run_attempt(
     for step in range(1, spec.max_steps + 1):
         messages = build_messages(prompt, config.format, task, observation, history, recent)
         digest = prompt_digest(messages)
-        artifacts.write_prompt(digest, messages)
+        artifacts.write_prompt(task.id, run, digest, messages)
         request = ModelRequest(
             messages=messages,
             temperature=config.temperature,
@@ -234,8 +235,8 @@ class MemoryArtifacts:
         self.images: dict[str, bytes] = {}  # by Image.digest
         self.frames: dict[str, bytes] = {}
 
-    def write_prompt(self, digest: str, messages: list[Message]) -> None:
-        if digest not in self.prompts:
+    def write_prompt(self, task: str, run: int, digest: str, messages: list[Message]) -> None:
+        if digest not in self.prompts:  # by content alone: nothing reads them back by episode
             for image in (image for m in messages for image in m.images):
                 if image.digest not in self.images:
                     self.images[image.digest] = image.load()

@@ -22,7 +22,7 @@ import numpy as np
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.runner import evaluate, resolve
 from deepphy.runs.records import AttemptRecord, KeyFrame, ModelStats, StepRecord, Timing
-from deepphy.runs.store import ATTEMPTS, RunStore
+from deepphy.runs.store import ATTEMPTS, PROMPTS, RunStore, prompt_log
 
 IPHYRE_TASKS = ["support", "hinder", "direction", "hole", "spring_flick", "multi_ball_lever"]
 
@@ -114,3 +114,25 @@ def copy_run(src, dest, lines: int, torn: int = 0):
 def append(dest, lines: list[bytes]):
     with open(dest / ATTEMPTS, "ab") as f:
         f.write(b"".join(line + b"\n" for line in lines))
+
+
+def to_old_layout(run: Path) -> None:
+    """Store a run directory's prompts as runs before the episode logs did: a file
+    prompts/<digest>.json per distinct prompt, and no logs."""
+    for log in sorted((run / PROMPTS).glob("*/*.jsonl")):
+        for line in log.read_bytes().splitlines():
+            entry = json.loads(line)
+            (run / PROMPTS / f"{entry['digest']}.json").write_text(json.dumps(entry["messages"]))
+        log.unlink()
+    for task in (run / PROMPTS).iterdir():
+        if task.is_dir():
+            task.rmdir()
+
+
+def rewrite_prompt(run: Path, task: str, run_number: int, digest: str, text: str) -> None:
+    """Replace the line of prompt `digest` in the log of episode (task, run_number) with
+    `text`, as someone editing the run directory would."""
+    log = run / prompt_log(task, run_number)
+    lines = log.read_text().splitlines()
+    lines[next(i for i, line in enumerate(lines) if json.loads(line)["digest"] == digest)] = text
+    log.write_text("\n".join(lines) + "\n")

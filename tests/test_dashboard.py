@@ -15,7 +15,7 @@ import urllib.request
 import pytest
 from aiohttp.test_utils import TestClient, TestServer
 
-from dashboard_support import append, copy_run, mock_run, synthetic_run
+from dashboard_support import append, copy_run, mock_run, rewrite_prompt, synthetic_run
 from deepphy.cli import main
 from deepphy.dashboard.server import Dashboard, make_app
 from deepphy.dashboard.source import RunSource, writer_holds_lock
@@ -128,7 +128,7 @@ def test_episode_shows_stored_images_and_marks_the_rest(run_dir):
     history = [f.path for a in records if (a.task, a.run) == (r.task, r.run) and a.attempt < 3 for f in a.key_frames]
     assert [source.frame_path(p["file"]).read_bytes() for p in parts[:-2]] == [(run_dir / f).read_bytes() for f in history]
     assert [p["name"] for p in parts[-2:]] == ["scene", "annotated"]
-    prompt = read_prompt(run_dir, r.steps[0].prompt)
+    prompt = read_prompt(run_dir, r.task, r.run, r.steps[0].prompt)
     assert [source.frame_path(p["file"]).read_bytes() for p in parts] == [i.png for m in prompt for i in m.images]
     with pytest.raises(KeyError):
         source.episode("nosuch", 0)
@@ -342,20 +342,27 @@ def test_live_runs_from_metrics_snapshots(run_dir):
 
 def test_nothing_outside_the_run_directory_is_read_or_served(run_dir, tmp_path):
     """A record naming a prompt outside the run, a frames/ directory symlinked out of it, a
-    prompt file of the wrong shape, a NUL byte in a file path: refused, never a 500."""
+    prompt of the wrong shape, a task's prompt logs symlinked out of it, a NUL byte in a file
+    path: refused, never a 500."""
     copy = tmp_path / "copy"
     log = copy_run(run_dir, copy, lines=12)
     secret = tmp_path / "secret"
     secret.mkdir()
     (secret / "x.json").write_text('[{"role": "user", "content": ["the secret"]}]')
     first = read_records(copy)[0]
+    other = next(r for r in read_records(copy) if r.task != first.task)
     bad = json.loads(log[12])
     bad["steps"][0]["prompt"] = "../../../secret/x"
     append(copy, [json.dumps(bad).encode()])
-    (copy / "prompts" / f"{first.steps[0].prompt}.json").write_text('{"role": "user", "content": {"a": 1}}')
+    rewrite_prompt(copy, first.task, first.run, first.steps[0].prompt,
+                   json.dumps({"digest": first.steps[0].prompt, "messages": {"role": "user", "content": {"a": 1}}}))
     frames = copy / "frames"
     shutil.move(frames, secret / "frames")
     frames.symlink_to(secret / "frames")
+    shutil.move(copy / "prompts" / other.task, secret / "prompts")
+    (copy / "prompts" / other.task).symlink_to(secret / "prompts")
+    rewrite_prompt(copy, other.task, other.run, other.steps[0].prompt,  # written there, through the link
+                   json.dumps({"digest": other.steps[0].prompt, "messages": [{"role": "user", "content": ["the secret"]}]}))
 
     async def scenario():
         source = RunSource(copy)
@@ -369,6 +376,9 @@ def test_nothing_outside_the_run_directory_is_read_or_served(run_dir, tmp_path):
             assert episode.status == 200
             body = await episode.json()
             assert body["prompts"][first.steps[0].prompt] is None and "the secret" not in await episode.text()
+            episode = await client.get(f"/api/runs/{source.id}/episode?task={other.task}&run={other.run}")
+            assert episode.status == 200 and "the secret" not in await episode.text()
+            assert (await episode.json())["prompts"] and not any((await episode.json())["prompts"].values())
             frame = first.key_frames[0].path
             assert (await client.get(f"/files/{source.id}/{frame}")).status == 404  # frames/ leads out
             assert (await client.get(f"/files/{source.id}/frames/a%00b.png")).status == 404

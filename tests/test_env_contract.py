@@ -50,7 +50,7 @@ def test_the_toy_environment_runs_through_the_whole_pipeline(ray_cluster, toy, t
     from deepphy.config import RunConfig, RuntimeOptions
     from deepphy.metrics.report import render_text, report_of
     from deepphy.runner import evaluate
-    from deepphy.runs.store import read_records
+    from deepphy.runs.store import read_records, stored_prompt_json
 
     config = RunConfig(env=toy.name, runs=2, seed=3)
     outcome = evaluate(config, tmp_path, RuntimeOptions(progress=False, env_workers=2))
@@ -61,7 +61,8 @@ def test_the_toy_environment_runs_through_the_whole_pipeline(ray_cluster, toy, t
     assert all(r.truncated == (not r.success) for r in records)
     second = [r for r in records if r.attempt == 2]
     assert second, "some episode needed a second attempt"
-    prompt = (tmp_path / "prompts" / f"{second[0].steps[0].prompt}.json").read_text()
+    stored = stored_prompt_json(tmp_path, second[0].task, second[0].run, second[0].steps[0].prompt)
+    prompt = "\n".join(p for m in stored for p in m["content"] if isinstance(p, str))  # its texts
     assert "Your previous 1 attempt(s) at this task failed" in prompt
     report = report_of(tmp_path)
     assert set(report["overall"]["mean"]["success_within_steps"]) == {"1", "2", "4"}

@@ -38,9 +38,10 @@ def test_bounds_hold_for_a_real_run(ray_cluster, tmp_path_factory):
     # expected: MOCK's requests per episode on the sampled tasks (its run 0), which is what this run's 0 asked
     assert est.requests_expected == pytest.approx(config.runs * sum(len(r.steps) for r in records if r.run == 0))
     images = {}  # prompt digest -> images in it
-    for prompt in (run / "prompts").iterdir():
-        messages = read_prompt(run, prompt.stem)
-        images[prompt.stem] = sum(isinstance(part, ImagePart) for m in messages for part in m.content)
+    for r in records:
+        for s in r.steps:
+            messages = read_prompt(run, r.task, r.run, s.prompt)
+            images[s.prompt] = sum(isinstance(part, ImagePart) for m in messages for part in m.content)
     first = [images[r.steps[0].prompt] for r in records if r.attempt == 1]
     assert est.images_first == pytest.approx(sum(first) / len(first))
     assert max(images.values()) <= est.images_max

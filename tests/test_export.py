@@ -93,7 +93,8 @@ def test_images_are_copied_and_referenced_by_relative_path(runs, exported):
             continue
         # every image the model saw is a file, and it is the very image the prompt held
         assert row.images_not_stored == 0 and len(row.observation_images) == 2  # scene, annotated
-        shown = [i.png for m in read_prompt(run_dirs[row.source], row.prompt_digest) for i in m.images]
+        shown = [i.png for m in read_prompt(run_dirs[row.source], row.task, row.run, row.prompt_digest)
+                 for i in m.images]
         assert [(out / p).read_bytes() for p in row.images] == shown
     assert summary.images == len(referenced)
     assert any(row.images for row in rows), "later attempts show earlier key frames"

@@ -177,6 +177,25 @@ def test_a_full_disk_stops_the_store_with_one_line_and_leaves_no_temporary_file(
     assert len(read_records(fs / "run")) == data.count(b"\n")
 
 
+def test_a_prompt_line_that_does_not_fit_is_cut_off(small_fs):
+    """The episode's prompt log stays whole lines when the disk fills up in the middle of one."""
+    from deepphy.chat import Message, TextPart
+    from deepphy.config import RunConfig
+    from deepphy.prompts import prompt_digest
+    from deepphy.runs.store import RunStore, RunWriteError, episode_prompts
+
+    fs = small_fs(64)
+    store = RunStore.create_or_resume(fs / "run", RunConfig(runs=1))
+    with pytest.raises(RunWriteError) as e:
+        for i in range(1000):
+            messages = [Message(role="user", content=[TextPart(text=f"decision {i}: " + "y" * 5000)])]
+            store.write_prompt("support", 0, prompt_digest(messages), messages)
+    store.close()
+    assert "cannot write prompts/support/r0.jsonl" in str(e.value) and "\n" not in str(e.value)
+    data = (fs / "run" / "prompts" / "support" / "r0.jsonl").read_bytes()
+    assert data.endswith(b"\n") and len(episode_prompts(fs / "run", "support", 0)) == data.count(b"\n") == i
+
+
 @pytest.mark.slow
 def test_a_full_disk_mid_run_is_one_line_and_the_resume_is_exact(ray_cluster, tmp_path_factory, small_fs):
     reference = mock_run(tmp_path_factory)

@@ -10,7 +10,7 @@ import pytest
 
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.runner import evaluate
-from deepphy.runs.store import ATTEMPTS, read_records
+from deepphy.runs.store import ATTEMPTS, episode_prompts, read_records, stored_prompt_json
 
 RAY_TIMEOUT_S = 120
 
@@ -51,7 +51,17 @@ def test_run_completes_one_record_per_attempt(baseline):
     assert all(len(r.key_frames) == 1 and (baseline / r.key_frames[0].path).exists() for r in records)
     # spring_flick is solved by doing nothing; MOCK always removes something, so it never is
     # at attempt 1 -- a weak check that history and prompts are stored
-    assert all((baseline / "prompts" / f"{s.prompt}.json").exists() for r in records for s in r.steps)
+    # Prompts: a log per episode, a line per distinct prompt in the order first asked, no
+    # file per prompt.
+    episodes = sorted({(r.task, r.run) for r in records})
+    logs = sorted(str(p.relative_to(baseline)) for p in (baseline / "prompts").rglob("*") if p.is_file())
+    assert logs == sorted(f"prompts/{task}/r{run}.jsonl" for task, run in episodes)
+    for task, run in episodes:
+        asked = [s.prompt for r in sorted(records, key=lambda r: r.attempt) if (r.task, r.run) == (task, run)
+                 for s in r.steps]
+        assert list(episode_prompts(baseline, task, run)) == list(dict.fromkeys(asked))
+        lines = (baseline / "prompts" / task / f"r{run}.jsonl").read_bytes().count(b"\n")
+        assert lines == len(set(asked))
 
 
 def test_same_seed_same_records(baseline, tmp_path):
@@ -67,15 +77,24 @@ def test_other_seed_other_actions(baseline, tmp_path):
 
 
 def test_resume_after_a_cut_log_finishes_the_same_run(baseline, tmp_path):
+    import json
+
     evaluate(CONFIG, tmp_path, RUNTIME)
     log = tmp_path / ATTEMPTS
     lines = log.read_bytes().split(b"\n")
     kept = len(lines) // 3
     log.write_bytes(b"\n".join(lines[:kept]) + b"\n" + lines[kept][:40])  # whole lines + a torn one
+    cut = json.loads(lines[kept])
+    prompts = tmp_path / "prompts" / cut["task"] / f"r{cut['run']}.jsonl"
+    with open(prompts, "ab") as f:  # the kill tore a prompt line of that episode too
+        f.write(prompts.read_bytes().splitlines()[-1][:60])
     outcome = evaluate(CONFIG, tmp_path, RUNTIME)
     assert outcome.complete and outcome.new_records == len(lines) - 1 - kept
-    assert_complete(tmp_path, CONFIG)
+    records = assert_complete(tmp_path, CONFIG)
     assert views(tmp_path) == views(baseline)
+    assert all(json.loads(line) for line in prompts.read_bytes().split(b"\n")[:-1])  # the torn tail was cut
+    assert prompts.read_bytes().endswith(b"}\n")
+    assert all(s.prompt in episode_prompts(tmp_path, r.task, r.run) for r in records for s in r.steps)
 
 
 def test_a_gap_in_an_episode_is_refused_then_repaired_and_the_resume_is_exact(baseline, tmp_path):
@@ -189,7 +208,7 @@ def test_on_the_fly_episodes_through_ray(ray_cluster, tmp_path, env, tasks):
         assert len(r.key_frames) == len(r.steps)  # one key frame per decision
         assert r.success or r.truncated or r.steps[-1].terminated
         assert all(not (s.terminated or s.truncated) for s in r.steps[:-1])
-    second = json.loads((tmp_path / "prompts" / f"{multi[0].steps[1].prompt}.json").read_text())
+    second = stored_prompt_json(tmp_path, multi[0].task, multi[0].run, multi[0].steps[1].prompt)
     user = "\n".join(p for m in second for p in m["content"] if isinstance(p, str))  # texts; images are references
     assert "Your earlier decisions in this attempt" in user and f"Step 1: {multi[0].steps[0].action_text}" in user
     # Kinetix overrides step_many (one jitted call for many episodes): waiting episodes are

@@ -16,6 +16,7 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
+from dashboard_support import rewrite_prompt, to_old_layout
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.chat import ImagePart
 from deepphy.envs import get_spec
@@ -24,7 +25,7 @@ from deepphy.models.providers import OpenAIChatClient
 from deepphy.models.wire import CONTEXT_HEADER, decode_context
 from deepphy.prompts.base import CURRENT_OBSERVATION
 from deepphy.runner import evaluate
-from deepphy.runs.store import RunDirError, image_file, read_prompt, read_records
+from deepphy.runs.store import RunDirError, image_file, read_prompt, read_records, stored_prompt_json
 from deepphy.testing.model_server import ServerConfig, ServerThread
 
 RUNTIME = RuntimeOptions(progress=False, env_workers=1)
@@ -55,7 +56,7 @@ def test_a_request_rebuilt_from_the_run_directory_equals_what_the_server_receive
         headers = {k.lower(): v for k, v in body["headers"].items()}
         ctx = decode_context(headers[CONTEXT_HEADER.lower()])
         step = records[(ctx.task_id, ctx.run, ctx.attempt)].steps[ctx.step - 1]
-        messages = read_prompt(run, step.prompt)
+        messages = read_prompt(run, ctx.task_id, ctx.run, step.prompt)
         assert [OpenAIChatClient.message(m) for m in messages] == body["body"]["messages"]
         assert "data:image/png;base64," in json.dumps(body["body"])  # the images themselves are compared
         parts = [p for m in messages for p in m.content]
@@ -84,7 +85,7 @@ def check_export(run: Path, out: Path) -> list[dict]:
     rows = pq.read_table(out / DATA_FILE).to_pylist()
     assert len(rows) == summary.rows == sum(len(r.steps) for r in read_records(run))
     for row in rows:
-        messages = read_prompt(run, row["prompt_digest"])
+        messages = read_prompt(run, row["task"], row["run"], row["prompt_digest"])
         parts = [p for m in messages for p in m.content]
         current = next(i for i, p in enumerate(parts) if getattr(p, "text", None) == CURRENT_OBSERVATION)
         observation = [p.image.png for p in parts[current:] if hasattr(p, "image")]
@@ -139,7 +140,7 @@ def check_chat_export(run: Path, out: Path) -> list[dict]:
         step = record.steps[row["step"] - 1]
         *conversation, reply = row["messages"]
         assert reply == {"role": "assistant", "content": [{"type": "text", "text": step.raw_output, "image": None}]}
-        sent = read_prompt(run, row["prompt_digest"])
+        sent = read_prompt(run, row["task"], row["run"], row["prompt_digest"])
         assert [m["role"] for m in conversation] == [m.role for m in sent]
         for mine, theirs in zip(conversation, sent):
             assert len(mine["content"]) == len(theirs.content)
@@ -193,10 +194,12 @@ def test_chat_export_of_a_phyre_run_is_the_conversation_the_model_saw(ray_cluste
 
 
 def test_a_run_from_before_stored_images_still_reads(cuttherope_run, tmp_path):
-    """Old prompts hold "<image NAME: CAPTION>" placeholders and no images/: records, the
-    export and the dashboard still read them; rebuilding a request says why it cannot."""
+    """Old prompts (a file each, before the episode logs) hold "<image NAME: CAPTION>"
+    placeholders and no images/: records, the export and the dashboard still read them;
+    rebuilding a request says why it cannot."""
     old = tmp_path / "old"
     shutil.copytree(cuttherope_run, old)
+    to_old_layout(old)
     shutil.rmtree(old / "images")
     for prompt in (old / "prompts").iterdir():
         messages = json.loads(prompt.read_text())
@@ -208,7 +211,7 @@ def test_a_run_from_before_stored_images_still_reads(cuttherope_run, tmp_path):
     rows = pq.read_table(tmp_path / "ds" / DATA_FILE).to_pylist()
     assert all(r["images_not_stored"] >= 1 and not r["observation_images"] for r in rows)
     with pytest.raises(RunDirError, match="did not store"):
-        read_prompt(old, rows[0]["prompt_digest"])
+        read_prompt(old, rows[0]["task"], rows[0]["run"], rows[0]["prompt_digest"])
     export([old], tmp_path / "chat", layout="chat")  # its conversations say where an image was not kept
     chat = pq.read_table(tmp_path / "chat" / CHAT_FILE).to_pylist()
     assert all(r["images_not_stored"] >= 1 and not r["observation_images"] for r in chat)
@@ -218,26 +221,27 @@ def test_a_run_from_before_stored_images_still_reads(cuttherope_run, tmp_path):
 def test_stored_images_are_validated_and_confined(cuttherope_run, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(cuttherope_run, run)
-    digest = read_records(run)[0].steps[0].prompt
-    image = next(p["image"] for m in json.loads((run / "prompts" / f"{digest}.json").read_text())
-                 for p in m["content"] if isinstance(p, dict))
+    first = read_records(run)[0]
+    episode, digest = (first.task, first.run), first.steps[0].prompt
+    stored = stored_prompt_json(run, *episode, digest)
+    image = next(p["image"] for m in stored for p in m["content"] if isinstance(p, dict))
     target = run / "images" / f"{image}.png"
     target.write_bytes(target.read_bytes()[:-10])  # altered: its bytes no longer match its name
     with pytest.raises(RunDirError, match="missing or altered"):
-        read_prompt(run, digest)
+        read_prompt(run, *episode, digest)
     secret = tmp_path / "secret.png"
     shutil.copyfile(cuttherope_run / "images" / f"{image}.png", secret)
     target.unlink()
     target.symlink_to(secret)  # leads out of the run directory: not read
     assert image_file(run, image) is None
     with pytest.raises(RunDirError, match="missing or altered"):
-        read_prompt(run, digest)
+        read_prompt(run, *episode, digest)
     for bad in ("../config", "x" * 20, "0" * 19 + "/"):
         with pytest.raises(RunDirError):
-            read_prompt(run, bad)
+            read_prompt(run, *episode, bad)
     assert image_file(run, "../" + image) is None
     # An edited prompt whose image reference is not a digest is not a stored prompt.
-    path = run / "prompts" / f"{digest}.json"
-    path.write_text(re.sub(r'"image":"[0-9a-f]{64}"', '"image":"../../secret"', path.read_text(), count=1))
+    line = json.dumps({"digest": digest, "messages": stored})
+    rewrite_prompt(run, *episode, digest, re.sub(r'"image": "[0-9a-f]{64}"', '"image": "../../secret"', line, count=1))
     with pytest.raises(RunDirError, match="not a stored prompt"):
-        read_prompt(run, digest)
+        read_prompt(run, *episode, digest)

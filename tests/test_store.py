@@ -240,3 +240,148 @@ def test_a_failed_first_open_leaves_nothing(tmp_path):
     assert (tmp_path / "new" / "config.json").exists()
     store.discard()
     assert not (tmp_path / "new").exists()
+
+
+# -- prompts: one log per episode -------------------------------------------------------
+
+from deepphy.chat import Image, ImagePart, Message, TextPart  # noqa: E402
+from deepphy.prompts import prompt_as_json, prompt_digest  # noqa: E402
+from deepphy.runs.store import episode_prompts, read_prompt, stored_prompt_json  # noqa: E402
+
+
+def prompt(text: str, shade: int = 0) -> tuple[str, list[Message]]:
+    scene = Image.from_array("scene", "the scene now", np.full((4, 6, 3), shade, np.uint8))
+    messages = [Message(role="system", content=[TextPart(text="rules")]),
+                Message(role="user", content=[ImagePart(image=scene), TextPart(text=text)])]
+    return prompt_digest(messages), messages
+
+
+def stored(messages: list[Message]) -> list[dict]:
+    return json.loads(prompt_as_json(messages))
+
+
+def test_prompts_are_a_log_per_episode_a_line_per_distinct_prompt(tmp_path):
+    (a, first), (b, second) = prompt("decide", 1), prompt("decide again", 2)
+    with RunStore.create_or_resume(tmp_path, RunConfig(runs=2)) as store:
+        for task, run, digest, messages in [("support", 0, a, first), ("support", 0, a, first),
+                                            ("support", 0, b, second), ("support", 1, a, first), ("hinder", 0, b, second)]:
+            store.write_prompt(task, run, digest, messages)
+    files = sorted(str(p.relative_to(tmp_path)) for p in (tmp_path / "prompts").rglob("*") if p.is_file())
+    assert files == ["prompts/hinder/r0.jsonl", "prompts/support/r0.jsonl", "prompts/support/r1.jsonl"]
+    lines = (tmp_path / "prompts" / "support" / "r0.jsonl").read_bytes().split(b"\n")
+    assert lines[-1] == b"" and [json.loads(line)["digest"] for line in lines[:-1]] == [a, b]
+    assert episode_prompts(tmp_path, "support", 0) == {a: stored(first), b: stored(second)}
+    assert stored_prompt_json(tmp_path, "support", 1, a) == stored(first)
+    assert read_prompt(tmp_path, "hinder", 0, b) == second  # the images too: each stored once, by content
+    assert len(list((tmp_path / "images").iterdir())) == 2
+    with pytest.raises(RunDirError, match=f"prompt {b} is missing \\(in prompts/support/r1.jsonl\\)"):
+        stored_prompt_json(tmp_path, "support", 1, b)  # in another episode's log only
+    # a resume appends an episode's prompt again (the store forgot it): the first line counts
+    with RunStore.create_or_resume(tmp_path, RunConfig(runs=2)) as store:
+        store.write_prompt("support", 1, a, first)
+    assert (tmp_path / "prompts" / "support" / "r1.jsonl").read_bytes().count(b"\n") == 2
+    assert episode_prompts(tmp_path, "support", 1) == {a: stored(first)}
+
+
+def test_a_torn_prompt_line_is_skipped_then_cut_on_resume(tmp_path):
+    """What a kill -9 in the middle of a prompt's write leaves: the line without its end.
+    Readers skip it; the resume's first append to that episode's log cuts it off."""
+    (a, first), (b, second), (c, third) = prompt("one"), prompt("two"), prompt("three")
+    cfg = RunConfig(runs=1)
+    with RunStore.create_or_resume(tmp_path, cfg) as store:
+        store.write_prompt("support", 0, a, first)
+    log = tmp_path / "prompts" / "support" / "r0.jsonl"
+    whole = log.read_bytes()
+    line = f'{{"digest":"{b}","messages":{prompt_as_json(second)}}}\n'.encode()
+    log.write_bytes(whole + line[:-1])  # all of it but the newline: still torn
+    assert episode_prompts(tmp_path, "support", 0) == {a: stored(first)}
+    with pytest.raises(RunDirError, match=f"prompt {b} is missing"):
+        stored_prompt_json(tmp_path, "support", 0, b)
+    with RunStore.create_or_resume(tmp_path, cfg) as store:
+        store.write_prompt("support", 0, c, third)
+        store.write_prompt("support", 0, b, second)  # the attempt that had no record, run again
+    assert log.read_bytes() == whole + f'{{"digest":"{c}","messages":{prompt_as_json(third)}}}\n'.encode() + line
+    assert episode_prompts(tmp_path, "support", 0) == {a: stored(first), c: stored(third), b: stored(second)}
+    log.write_bytes(line[:40])  # a log holding only a torn line is emptied
+    with RunStore.create_or_resume(tmp_path, cfg) as store:
+        store.write_prompt("support", 0, a, first)
+    assert log.read_bytes() == whole
+
+
+def test_a_tampered_prompt_log_is_skipped_line_by_line_and_reported_in_one_line(tmp_path, monkeypatch):
+    from deepphy.runs import store as store_module
+
+    (a, first), (b, second), (c, third), (d, fourth) = prompt("one"), prompt("two"), prompt("three"), prompt("four")
+    with RunStore.create_or_resume(tmp_path, RunConfig(runs=1)) as store:
+        for digest, messages in ((a, first), (b, second), (c, third), (d, fourth)):
+            store.write_prompt("support", 0, digest, messages)
+    log = tmp_path / "prompts" / "support" / "r0.jsonl"
+    lines = log.read_text().splitlines()
+    lines[0] = "garbage " + a
+    lines[1] = json.dumps({"digest": b, "messages": {"role": "user"}})  # JSON, not a stored prompt
+    lines[2] = json.dumps({"digest": c, "messages": [{"role": "user", "content": [{"image": "../../secret",
+                                                                                     "name": "x", "caption": "y"}]}]})
+    lines.insert(3, "[" * 100_000 + "]" * 100_000)  # nested too deep to parse
+    log.write_text("\n".join(lines) + "\n")
+    assert episode_prompts(tmp_path, "support", 0) == {d: stored(fourth)}
+    for digest in (a, b, c):
+        with pytest.raises(RunDirError) as e:
+            stored_prompt_json(tmp_path, "support", 0, digest)
+        assert str(e.value) == (f"{tmp_path}: prompt {digest} is not a stored prompt (a list of messages) "
+                                "(in prompts/support/r0.jsonl)")
+    assert read_prompt(tmp_path, "support", 0, d) == fourth
+    monkeypatch.setattr(store_module, "MAX_PROMPT_BYTES", len(lines[4]) - 1)  # a line longer than any prompt
+    assert episode_prompts(tmp_path, "support", 0) == {}
+    with pytest.raises(RunDirError, match=f"prompt {d} is missing"):
+        stored_prompt_json(tmp_path, "support", 0, d)
+    for bad in ("../config", "x" * 20, d + "\n"):
+        with pytest.raises(RunDirError, match="is not a prompt digest"):
+            stored_prompt_json(tmp_path, "support", 0, bad)
+
+
+def test_prompt_logs_that_lead_out_of_the_run_are_neither_read_nor_written(tmp_path):
+    (a, first), (b, second) = prompt("one"), prompt("two")
+    cfg = RunConfig(runs=1)
+    run = tmp_path / "run"
+    with RunStore.create_or_resume(run, cfg) as store:
+        store.write_prompt("support", 0, a, first)
+        store.write_prompt("hinder", 0, a, first)
+    secret = tmp_path / "secret"
+    (run / "prompts" / "support").rename(secret)  # a valid log, but outside the run
+    (run / "prompts" / "support").symlink_to(secret)
+    for read in (lambda: episode_prompts(run, "support", 0), lambda: stored_prompt_json(run, "support", 0, a)):
+        with pytest.raises(RunDirError, match="prompts/support/r0.jsonl leads out of the run directory"):
+            read()
+    for task, run_ in (("../support", 0), ("support/..", 0), ("hinder", -1)):
+        with pytest.raises(RunDirError, match="leads out of the run directory"):
+            episode_prompts(run, task, run_)
+    with RunStore.create_or_resume(run, cfg) as store:
+        with pytest.raises(RunDirError, match="prompts/support leads out of the run directory"):
+            store.write_prompt("support", 0, b, second)
+        (run / "prompts" / "hinder" / "r1.jsonl").symlink_to(secret / "r0.jsonl")  # a log symlinked out
+        with pytest.raises(RunDirError, match="is a symbolic link"):
+            store.write_prompt("hinder", 1, b, second)
+    assert (secret / "r0.jsonl").read_bytes().count(b"\n") == 1  # nothing was written there
+    with pytest.raises(RunDirError, match="leads out of the run directory"):
+        episode_prompts(run, "hinder", 1)
+
+
+def test_prompts_of_a_run_from_before_the_logs_are_still_read(tmp_path):
+    """Runs before the logs stored prompts/<digest>.json; a resumed one holds both."""
+    (a, first), (b, second) = prompt("one"), prompt("two")
+    cfg = RunConfig(runs=1)
+    with RunStore.create_or_resume(tmp_path, cfg) as store:
+        store.write_prompt("support", 0, a, first)  # its images, under images/
+    (tmp_path / "prompts" / f"{a}.json").write_text(json.dumps(stored(first), indent=1))
+    (tmp_path / "prompts" / "support" / "r0.jsonl").unlink()
+    assert episode_prompts(tmp_path, "support", 0) == {}
+    assert stored_prompt_json(tmp_path, "support", 0, a) == stored(first)
+    assert read_prompt(tmp_path, "support", 0, a) == first
+    with RunStore.create_or_resume(tmp_path, cfg) as store:  # resumed with this version
+        store.write_prompt("support", 0, b, second)
+    logged = episode_prompts(tmp_path, "support", 0)
+    assert logged == {b: stored(second)}
+    assert [stored_prompt_json(tmp_path, "support", 0, d, logged) for d in (a, b)] == [stored(first), stored(second)]
+    (tmp_path / "prompts" / f"{a}.json").write_text('{"role": "user"}')
+    with pytest.raises(RunDirError, match=f"prompts/{a}.json is not a stored prompt"):
+        stored_prompt_json(tmp_path, "support", 0, a, logged)

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import bisect
 import hashlib
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,8 +21,8 @@ from deepphy.metrics.report import build_report, setting, table, table_key
 from deepphy.runs.records import AttemptRecord
 from deepphy.runs.status import read_status, writer_holds_lock
 from deepphy.runs.store import (
-    ATTEMPTS, CONFIG, FRAMES, IMAGES, OLD_IMAGE_PLACEHOLDER, PROMPTS, image_file, inside, is_stored_prompt,
-    read_config, stored_image,
+    ATTEMPTS, CONFIG, FRAMES, IMAGES, OLD_IMAGE_PLACEHOLDER, RunDirError, episode_prompts, image_file, inside,
+    read_config, stored_image, stored_prompt_json,
 )
 
 # Bytes of the log consumed per poll: a huge log loads in slices, so the page shows
@@ -292,10 +291,14 @@ class RunSource:
         records = sorted(self.episodes.get((task, run), {}).values(), key=lambda r: r.attempt)
         prompts: dict[str, Any] = {}
         attempts = []
+        try:
+            logged = episode_prompts(self.path, task, run)  # read once for the whole episode
+        except RunDirError:
+            logged = {}  # its prompts are shown as missing
         for r in records:
             for s in r.steps:
                 if s.prompt not in prompts:
-                    prompts[s.prompt] = self._prompt(task, s.prompt)
+                    prompts[s.prompt] = self._prompt(task, run, s.prompt, logged)
             attempts.append(r.model_dump(mode="json"))
         return {
             "run_id": self.id, "task": task, "run": run, "group": self.tasks[self.task_index[task]].group,
@@ -304,15 +307,13 @@ class RunSource:
             "attempts": attempts, "prompts": prompts,
         }
 
-    def _prompt(self, task: str, digest: str) -> list[dict[str, Any]] | None:
-        """The prompt's messages, each image resolved to its stored file: images/<sha256>.png
-        (runs before images/ kept only history key frames, under frames/<task>/ by name)."""
-        path = inside(self.path, f"{PROMPTS}/{digest}.json")  # the digest is a validated record's
+    def _prompt(self, task: str, run: int, digest: str, logged: dict[str, list]) -> list[dict[str, Any]] | None:
+        """The prompt's messages (`logged`: the episode's prompt log), each image resolved to
+        its stored file: images/<sha256>.png (runs before images/ kept only history key
+        frames, under frames/<task>/ by name). None if it is missing or malformed."""
         try:
-            messages = json.loads(path.read_text()) if path is not None else None
-        except (OSError, ValueError, RecursionError):
-            return None
-        if not is_stored_prompt(messages):  # a hand-edited or foreign file: shown as missing
+            messages = stored_prompt_json(self.path, task, run, digest, logged)
+        except RunDirError:
             return None
         out = []
         for m in messages:

@@ -11,7 +11,7 @@ from deepphy.envs.base import SAFE_ID
 
 # A record names files of its run directory; these patterns keep it to its own kinds of file
 # (the store also resolves every path it reads inside the directory: symlinks cannot lead out).
-DIGEST = r"^[0-9a-f]{8,64}$"  # prompt_digest: prompts/<digest>.json
+DIGEST = r"^[0-9a-f]{8,64}$"  # prompt_digest: a line of prompts/<task>/r<run>.jsonl
 FRAME = r"^frames/" + SAFE_ID.pattern[1:-1] + r"/[A-Za-z0-9][A-Za-z0-9._-]{0,200}\.png$"  # frames/<task>/<file>.png
 
 
@@ -19,7 +19,7 @@ class StepRecord(BaseModel):
     """One decision: what was asked, what came back, what it did."""
 
     step: int = Field(ge=1)
-    prompt: str = Field(pattern=DIGEST)  # digest of the prompt; its text is in prompts/<digest>.json
+    prompt: str = Field(pattern=DIGEST)  # digest of the prompt; its text is in the episode's prompt log
     raw_output: str  # the reply, cut to its last MAX_REPLY_CHARS characters (deepphy/envs/parsing.py)
     reply_cut: int = 0  # characters cut from the start of an over-long reply
     prediction: str | None = None  # WM format only

@@ -3,7 +3,10 @@
 Layout:
     config.json      the RunConfig, written once; a resume must present the same one
     attempts.jsonl   one AttemptRecord per line, appended by the single driver
-    prompts/<digest>.json   each distinct prompt once, its images by content address
+    prompts/<task>/r<run>.jsonl   the episode's prompt log: each distinct prompt of the
+                     episode once, a line {"digest", "messages"} (its images by content address),
+                     appended before the record that names it (runs before these logs hold
+                     prompts/<digest>.json files instead; readers take both)
     images/<sha256>.png     every image of every prompt, once (named by the sha256 of its bytes;
                      a history key frame is a hard link to its file under frames/)
     frames/<task>/r<run>_a<attempt>_<name>.png   key frames, referenced by records
@@ -15,10 +18,13 @@ Layout:
 Crash safety: a record is one `write` of one line on an O_APPEND descriptor, made after
 its frames are on disk. A run killed mid-write leaves at most a torn last line; opening
 the store drops it (it has no newline) before appending again, so every (task, run,
-attempt) appears exactly once. A write that fails (disk full, read-only file system, no
-permission) stops the run with `RunWriteError`: a short record is cut off again and a
-frame or prompt is written to a temporary file renamed into place, so what is on disk
-stays whole and the next resume goes on from it.
+attempt) appears exactly once. An episode's prompt log is appended to the same way; its
+torn tail is cut the first time a resume appends to it (that prompt belongs to an attempt
+with no record, which the resume runs again), and readers skip it. A write that fails
+(disk full, read-only file system, no permission) stops the run with `RunWriteError`: a
+short record or prompt line is cut off again and a frame or image is written to a
+temporary file renamed into place, so what is on disk stays whole and the next resume
+goes on from it.
 
 A run directory is untrusted input (someone may hand you one): everything read from it is
 confined to it (`inside`: the resolved path, symlinks followed, must stay in the
@@ -29,6 +35,7 @@ shown are files in the directory), and `repair` is the documented way out of a b
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import json
 import os
@@ -38,17 +45,22 @@ import time
 from collections import Counter, defaultdict
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Iterator, Sequence
 
 from pydantic import ValidationError
 
 from deepphy.chat import Image, ImagePart, Message, TextPart
 from deepphy.config import RunConfig
+from deepphy.envs.base import SAFE_ID
 from deepphy.messages import validation_message
 from deepphy.prompts import image_digest, prompt_as_json
-from deepphy.runs.records import AttemptRecord, episode_finished
+from deepphy.runs.records import DIGEST, AttemptRecord, episode_finished
 
-PROMPTS_REMEMBERED = 10_000  # digests known to be on disk without asking the file system
+PROMPTS_REMEMBERED = 10_000  # prompts and images known to be on disk without asking the file system
+# A prompt is KBs (the replies its history repeats are cut at 32,768 characters each): a
+# longer line of a prompt log, or a longer prompts/<digest>.json, is not ours and is not read.
+MAX_PROMPT_BYTES = 16 * 1024 * 1024
+TAIL_BLOCK = 64 * 1024  # read backwards in blocks of this size to find a torn line's start
 CONFIG = "config.json"
 ATTEMPTS = "attempts.jsonl"
 ERRORS = "errors.jsonl"
@@ -59,6 +71,7 @@ IMAGES = "images"
 LOCK = ".lock"
 OWN_ENTRIES = {CONFIG, ATTEMPTS, ERRORS, LOGS, FRAMES, PROMPTS, IMAGES, LOCK}  # what a run directory holds
 IMAGE_DIGEST = re.compile(r"^[0-9a-f]{64}$")  # images/<digest>.png (deepphy.prompts.image_digest)
+PROMPT_DIGEST = re.compile(DIGEST)  # deepphy.prompts.prompt_digest
 OLD_IMAGE_PLACEHOLDER = re.compile(r"^<image ([^:>]*): (.*)>$", re.S)  # an image in prompts of runs before images/
 
 
@@ -81,6 +94,11 @@ def inside(root: Path, rel: str | Path) -> Path | None:
     return target if target == root or target.is_relative_to(root) else None
 
 
+def prompt_log(task: str, run: int) -> str:
+    """The prompt log of episode (task, run), relative to the run directory."""
+    return f"{PROMPTS}/{task}/r{run}.jsonl"
+
+
 def _write_failed(path: Path, what: str, e: OSError) -> RunWriteError:
     return RunWriteError(f"cannot write {what} in {path}: {e.strerror or e}; what is recorded is whole: "
                          "fix that and run the same command again to resume")
@@ -92,11 +110,12 @@ class RunStore:
         self._root = self.path.resolve()  # resolved once, not for every key frame handed out
         self._fd: int | None = None
         self._lock_fd: int | None = None
-        self._prompts: set[str] = set()
+        self._prompts: set[tuple[str, int, str]] = set()  # (task, run, digest) in the episode's log
+        self._logs: set[tuple[str, int]] = set()  # episodes whose prompt log this store has checked for a torn tail
         self._images: set[str] = set()  # image digests known to be on disk
         self._digests: dict[str, str] = {}  # image digest of each key frame this store wrote, by file
-        self._task_dirs: set[str] = set()  # frames/<task> directories known to be inside the run
-        self._prompts_dir, self._images_dir = str(self.path / PROMPTS), str(self.path / IMAGES)  # joined once
+        self._task_dirs: set[str] = set()  # frames/<task>, prompts/<task>: known to be inside the run
+        self._images_dir = str(self.path / IMAGES)  # joined once
         self.created = False  # this store made the directory (discard() may remove it)
         self.appended = 0  # records and errors written
 
@@ -164,8 +183,8 @@ class RunStore:
     def start_writing(self) -> None:
         """Open the attempt log for appending (after dropping a torn last line)."""
         try:
-            self._repair_tail()
-            self._fd = os.open(self.path / ATTEMPTS, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+            self._fd = os.open(self.path / ATTEMPTS, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
+            _cut_torn_tail(self._fd)
         except OSError as e:
             raise _write_failed(self.path, ATTEMPTS, e) from None
 
@@ -196,31 +215,6 @@ class RunStore:
             self._lock_fd = None
             raise RunDirError(f"{self.path} is in use by another deepphy run") from None
 
-    def _repair_tail(self) -> None:
-        """Drop a torn last line left by a run killed in the middle of a write."""
-        log = self.path / ATTEMPTS
-        if not log.exists():
-            return
-        with open(log, "rb") as f:
-            end = f.seek(0, os.SEEK_END)
-            if end == 0:
-                return
-            f.seek(end - 1)
-            if f.read(1) == b"\n":
-                return
-            keep = 0
-            block = 64 * 1024
-            for start in range(max(0, end - block), -block, -block):
-                f.seek(max(start, 0))
-                chunk = f.read(min(block, end - max(start, 0)))
-                cut = chunk.rfind(b"\n")
-                if cut >= 0:
-                    keep = max(start, 0) + cut + 1
-                    break
-                end = max(start, 0)
-        with open(log, "r+b") as f:
-            f.truncate(keep)
-
     def close(self) -> None:
         for fd in (self._fd, self._lock_fd):
             if fd is not None:
@@ -244,17 +238,10 @@ class RunStore:
 
     def append(self, record: AttemptRecord) -> None:
         assert self._fd is not None, "store not open for writing"
-        line = (record.model_dump_json() + "\n").encode()
         try:
-            written = os.write(self._fd, line)
+            _append_line(self._fd, (record.model_dump_json() + "\n").encode())
         except OSError as e:
             raise _write_failed(self.path, ATTEMPTS, e) from None
-        if written != len(line):  # the disk filled up mid-line: cut it off, the log stays whole
-            try:
-                os.ftruncate(self._fd, os.lseek(self._fd, 0, os.SEEK_END) - written)
-            except OSError:
-                pass  # the next resume drops the torn line
-            raise _write_failed(self.path, ATTEMPTS, OSError(28, os.strerror(28)))
         self.appended += 1
 
     def append_error(self, error: dict) -> None:
@@ -269,14 +256,19 @@ class RunStore:
     def log_path(self, name: str) -> str:
         return str(self._root / LOGS / f"{name}.log")
 
+    def _task_dir(self, kind: str, task: str) -> None:
+        """Make <kind>/<task> (frames/, prompts/) once, checked to stay inside the run."""
+        rel = f"{kind}/{task}"
+        if rel not in self._task_dirs:
+            (self.path / rel).mkdir(exist_ok=True)
+            if inside(self._root, rel) is None:
+                raise RunDirError(f"{self.path}/{rel} leads out of the run directory; refusing to write there")
+            self._task_dirs.add(rel)
+
     def write_frame(self, task: str, run: int, attempt: int, name: str, png: bytes) -> str:
         rel = f"{FRAMES}/{task}/r{run}_a{attempt}_{name}.png"
         try:
-            if task not in self._task_dirs:
-                (self.path / FRAMES / task).mkdir(exist_ok=True)
-                if inside(self._root, f"{FRAMES}/{task}") is None:
-                    raise RunDirError(f"{self.path}/{FRAMES}/{task} leads out of the run directory; refusing to write there")
-                self._task_dirs.add(task)
+            self._task_dir(FRAMES, task)
             atomic_write(f"{self.path}/{rel}", png)
         except OSError as e:
             raise _write_failed(self.path, rel, e) from None
@@ -285,22 +277,31 @@ class RunStore:
         self._digests[str(self._root / rel)] = image_digest(png)  # while the bytes are here: later prompts show it
         return rel
 
-    def write_prompt(self, digest: str, messages: list[Message]) -> None:
-        """The prompt and each of its images, once (images first: a stored prompt's images
-        are on disk)."""
-        if digest in self._prompts:
+    def write_prompt(self, task: str, run: int, digest: str, messages: list[Message]) -> None:
+        """The prompt as a line of the episode's prompt log, once per episode, and each of its
+        images once (images first: a stored prompt's images are on disk). Appending to an
+        existing file creates no inode: a run makes a file per episode, not per decision."""
+        if (task, run, digest) in self._prompts:
             return
-        target = f"{self._prompts_dir}/{digest}.json"
+        rel = prompt_log(task, run)
         try:
-            if not os.path.exists(target):
-                for m in messages:
-                    for part in m.content:
-                        if isinstance(part, ImagePart):
-                            self._write_image(part.image)
-                atomic_write(target, prompt_as_json(messages).encode())
+            for image in (image for m in messages for image in m.images):
+                self._write_image(image)
+            self._task_dir(PROMPTS, task)
+            # read as well: the first append of this store checks the tail
+            fd = os.open(f"{self.path}/{rel}", os.O_RDWR | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW, 0o644)
+            try:
+                if (task, run) not in self._logs:  # a run killed mid-line left a torn one
+                    _cut_torn_tail(fd)
+                    _remember(self._logs, (task, run))
+                _append_line(fd, f'{{"digest":"{digest}","messages":{prompt_as_json(messages)}}}\n'.encode())
+            finally:
+                os.close(fd)
         except OSError as e:
-            raise _write_failed(self.path, f"{PROMPTS}/{digest}.json", e) from None
-        _remember(self._prompts, digest)
+            if e.errno == errno.ELOOP:  # O_NOFOLLOW: the log is a symlink
+                raise RunDirError(f"{self.path}/{rel} is a symbolic link; refusing to write there") from None
+            raise _write_failed(self.path, rel, e) from None
+        _remember(self._prompts, (task, run, digest))
 
     def _write_image(self, image: Image) -> None:
         digest = image.digest
@@ -327,10 +328,39 @@ class RunStore:
         return Image.stored(name=rel.rsplit("/", 1)[-1], caption=caption, file=file, digest=self._digests.get(file))
 
 
-def _remember(known: set[str], digest: str) -> None:
+def _remember(known: set, key: object) -> None:
     if len(known) >= PROMPTS_REMEMBERED:  # bounded: a long run's memory stays flat
         known.clear()
-    known.add(digest)
+    known.add(key)
+
+
+def _append_line(fd: int, line: bytes) -> None:
+    """One `write` of a whole line on an O_APPEND descriptor. A short write (the disk filled
+    up mid-line) is cut off again, so the file stays whole lines."""
+    written = os.write(fd, line)
+    if written != len(line):
+        try:
+            os.ftruncate(fd, os.lseek(fd, 0, os.SEEK_END) - written)
+        except OSError:
+            pass  # the next resume drops the torn line
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+def _cut_torn_tail(fd: int) -> None:
+    """Truncate a log (open for reading and writing) after its last newline: a run killed
+    in the middle of a write leaves a last line without one."""
+    end = os.fstat(fd).st_size
+    if end == 0 or os.pread(fd, 1, end - 1) == b"\n":
+        return
+    keep = 0
+    while end > 0:
+        start = max(0, end - TAIL_BLOCK)
+        cut = os.pread(fd, end - start, start).rfind(b"\n")
+        if cut >= 0:
+            keep = start + cut + 1
+            break
+        end = start
+    os.ftruncate(fd, keep)
 
 
 # -- reading (no lock needed: the log only grows by whole lines) ---------------------
@@ -499,7 +529,7 @@ def repair(path: str | Path, k_max: int) -> Repair:
 
 
 def is_stored_prompt(messages: object) -> bool:
-    """The shape of prompts/<digest>.json (deepphy.prompts.prompt_as_json): a list of
+    """The shape of a stored prompt (deepphy.prompts.prompt_as_json): a list of
     {"role": str, "content": [part, ...]}, a part a text or an image reference (see
     `stored_image`; older runs hold "<image NAME: CAPTION>" strings). Readers check it: the
     file may have been edited."""
@@ -525,32 +555,112 @@ def image_file(path: str | Path, digest: str) -> Path | None:
     return target if target is not None and target.parent == root / IMAGES and target.is_file() else None
 
 
-def load_stored_prompt(run_dir: str | Path, target: Path, digest: str) -> list[dict]:
-    """The JSON of prompt `digest` at `target` (already confined to `run_dir`), checked to be
-    a stored prompt; RunDirError in one line otherwise."""
-    rel = f"{PROMPTS}/{digest}.json"
+def episode_prompts(path: str | Path, task: str, run: int) -> dict[str, list[dict]]:
+    """Every prompt in the log of episode (task, run), by digest, read once: for callers that
+    walk an episode (give it to `stored_prompt_json`). The first line of a digest counts (a
+    resume may append one again); a line that is torn, too long or not a stored prompt is
+    skipped. Empty for a run from before these logs."""
+    return _read_log(Path(path), task, run)[0]
+
+
+def stored_prompt_json(path: str | Path, task: str, run: int, digest: str,
+                       logged: dict[str, list[dict]] | None = None) -> list[dict]:
+    """The JSON of prompt `digest` of episode (task, run), checked to be a stored prompt:
+    from the episode's log (`logged`: that log as `episode_prompts` read it), else, in a run
+    from before these logs, from prompts/<digest>.json. RunDirError in one line otherwise."""
+    path = Path(path)
+    if not PROMPT_DIGEST.fullmatch(digest):
+        raise RunDirError(f"{path}: {digest[:80]!r} is not a prompt digest")
+    if logged is None:
+        logged = _read_log(path, task, run, digest)[0]
+    if digest in logged:
+        return logged[digest]
+    old = f"{PROMPTS}/{digest}.json"
+    target = inside(path.resolve(), old)
+    if target is None:
+        raise RunDirError(f"{path}: {old} leads out of the run directory; refusing to read it")
     try:
-        stored = json.loads(target.read_text())
+        with open(target, "rb") as f:
+            data = f.read(MAX_PROMPT_BYTES + 1)
     except FileNotFoundError:
-        raise RunDirError(f"{run_dir}: prompt {digest} is missing ({rel})") from None
-    except (OSError, ValueError, RecursionError) as e:
-        raise RunDirError(f"{run_dir}: {rel} cannot be read ({type(e).__name__})") from None
+        rejected = _read_log(path, task, run, digest)[1]  # on the way to an error: say why
+        why = "is not a stored prompt (a list of messages)" if rejected else "is missing"
+        raise RunDirError(f"{path}: prompt {digest} {why} (in {prompt_log(task, run)})") from None
+    except OSError as e:
+        raise RunDirError(f"{path}: {old} cannot be read ({e.strerror or type(e).__name__})") from None
+    try:
+        stored = json.loads(data) if len(data) <= MAX_PROMPT_BYTES else None
+    except (ValueError, RecursionError) as e:
+        raise RunDirError(f"{path}: {old} cannot be read ({type(e).__name__})") from None
     if not is_stored_prompt(stored):
-        raise RunDirError(f"{run_dir}: {rel} is not a stored prompt (a list of messages)")
+        raise RunDirError(f"{path}: {old} is not a stored prompt (a list of messages)")
     return stored
 
 
-def read_prompt(path: str | Path, digest: str) -> list[Message]:
-    """The exact messages of a stored prompt, images included (read from images/ and checked
-    against their digests): the request a model received, rebuilt from the run directory.
-    RunDirError if the prompt is missing, malformed, or from a run that did not store its
-    images."""
-    root = Path(path).resolve()
-    rel = f"{PROMPTS}/{digest}.json"
-    target = inside(root, rel) if re.fullmatch(r"[0-9a-f]{8,64}", digest) else None
+def _read_log(path: Path, task: str, run: int, digest: str | None = None) -> tuple[dict[str, list[dict]], int]:
+    """The stored prompts of an episode's log by digest (only `digest`'s, if given: other
+    lines are not parsed), and how many of the lines looked at were skipped as not a stored
+    prompt."""
+    rel = prompt_log(task, run)
+    target = inside(path.resolve(), rel) if SAFE_ID.fullmatch(task) and run >= 0 else None
     if target is None:
-        raise RunDirError(f"{path}: {rel} is not a prompt of this run directory")
-    stored = load_stored_prompt(path, target, digest)
+        raise RunDirError(f"{path}: {rel} leads out of the run directory; refusing to read it")
+    found: dict[str, list[dict]] = {}
+    rejected = 0
+    try:
+        with open(target, "rb") as f:
+            for line in _complete_lines(f):
+                if digest is not None and digest.encode() not in line:
+                    continue
+                entry = _logged_prompt(line)
+                if entry is None:
+                    rejected += 1
+                elif entry[0] not in found and digest in (None, entry[0]):
+                    found[entry[0]] = entry[1]
+                    if digest is not None:
+                        break
+    except FileNotFoundError:
+        pass  # nothing logged: a run from before these logs, or an episode not begun
+    except OSError as e:
+        raise RunDirError(f"{path}: {rel} cannot be read ({e.strerror or type(e).__name__})") from None
+    return found, rejected
+
+
+def _complete_lines(f) -> Iterator[bytes]:
+    """The lines of a log that end in a newline (a torn last line has none), without it; a
+    line longer than MAX_PROMPT_BYTES comes back empty, skipped without being held."""
+    while True:
+        line = f.readline(MAX_PROMPT_BYTES + 1)
+        if line.endswith(b"\n"):
+            yield line[:-1]
+        elif len(line) <= MAX_PROMPT_BYTES:
+            return  # the end of the log
+        else:
+            while line and not line.endswith(b"\n"):  # the rest of the over-long line
+                line = f.readline(TAIL_BLOCK)
+            yield b""
+
+
+def _logged_prompt(line: bytes) -> tuple[str, list[dict]] | None:
+    """(digest, messages) of a prompt log's line, or None if it is not one."""
+    try:
+        entry = json.loads(line)
+    except (ValueError, RecursionError):
+        return None
+    if not (isinstance(entry, dict) and set(entry) == {"digest", "messages"} and isinstance(entry["digest"], str)
+            and PROMPT_DIGEST.fullmatch(entry["digest"]) and is_stored_prompt(entry["messages"])):
+        return None
+    return entry["digest"], entry["messages"]
+
+
+def read_prompt(path: str | Path, task: str, run: int, digest: str) -> list[Message]:
+    """The exact messages of prompt `digest` of episode (task, run), images included (read
+    from images/ and checked against their digests): the request a model received, rebuilt
+    from the run directory. RunDirError if the prompt is missing, malformed, or from a run
+    that did not store its images."""
+    root = Path(path).resolve()
+    stored = stored_prompt_json(path, task, run, digest)
+    rel = f"prompt {digest}"
     if any(m["role"] not in ("system", "user", "assistant") for m in stored):
         raise RunDirError(f"{path}: {rel} is not a stored prompt (a list of messages)")
     messages = []
