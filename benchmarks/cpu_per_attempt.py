@@ -17,10 +17,12 @@ The ratio printed is (2) / (1): the target of issue 25 is <= 1.15. `--rounds N` 
 both measurements N times, interleaved, and prints each round's ratio and their median (a
 round of I-PHYRE's steady state is ~10 s: a 2-vCPU VM's rounds differ by up to +-30 %).
 
-Also printed: the files the run created per attempt, and what creating a file costs on the
-run directory's disk at that moment (kernel CPU, probed with 300 empty files): on this
-machine's ext4 it ranged 0.03-0.9 ms, the largest source of the rounds' spread (the driver
-creates each key frame and prompt log as a file).
+Also printed: each process's kernel share and the files the run created per attempt. On
+this machine's ext4 (mounted without a journal) creating a file costs 0.02-0.9 ms of kernel
+CPU: without a journal ext4 will not reuse an inode freed in the last 60-300 s and scans
+past each one (`recently_deleted` in perf), so a `rm -rf` of a few thousand files makes the
+next minutes' file creations dear. The rounds' run directories are therefore all removed at
+the end, not between rounds (other processes' deletions still count).
 
     .venv/bin/python benchmarks/cpu_per_attempt.py [--envs iphyre,phyre,pooltool] [--quick] [--rounds N]
 """
@@ -39,7 +41,6 @@ from collections import defaultdict
 from contextlib import contextmanager
 
 import psutil
-import resource
 import statistics
 
 from deepphy.chat import Image
@@ -217,17 +218,34 @@ def pipeline(config: RunConfig, out: str) -> tuple[int, dict[str, float], dict[s
     return last[0] - first[0], dict(per_role), dict(kernel), last[2] - first[2]
 
 
-def file_creation_ms(where: str, count: int = 300) -> float:
-    """Kernel CPU (ms) this process spends creating one empty file in `where`, now."""
-    probe = tempfile.mkdtemp(prefix=".probe", dir=where)
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_stime
-    for i in range(count):
-        os.close(os.open(os.path.join(probe, str(i)), os.O_WRONLY | os.O_CREAT, 0o644))
-    return (resource.getrusage(resource.RUSAGE_SELF).ru_stime - before) / count * 1000
-
-
 def files_in(path: str) -> int:
     return sum(len(files) for _, _, files in os.walk(path))
+
+
+def measure(name: str, quick: bool, rounds: int, scratch: str) -> tuple[float, float, list[float]]:
+    """(environment work, run CPU per attempt of the last round, every round's ratio)."""
+    runs, limit = SIZES[name][1 if quick else 0]
+    config = RunConfig(env=name, model="mock", runs=runs, limit=limit)
+    ratios = []
+    for round_ in range(rounds):
+        attempts, stages, loop_cpu = asyncio.run(env_work(config))
+        work = sum(stages.values()) / attempts
+        run_dir = os.path.join(scratch, f"{name}{round_}")  # removed at the end (see the docstring)
+        n, roles, kernel, window = pipeline(config, run_dir)
+        total = sum(roles.values()) / n
+        ratios.append(total / work)
+        label = f" (round {round_ + 1} of {rounds})" if rounds > 1 else ""
+        print(f"\n{name}{label}: {attempts} attempts in-process; run window {n} attempts in {window:.1f} s; "
+              f"load {os.getloadavg()[0]:.2f}")
+        print("  environment's own work per attempt (in-process): " + ", ".join(
+            f"{s} {stages.get(s, 0.0) / attempts * 1000:.1f} ms" for s in ("simulate", "render", "encode"))
+            + f" = {work * 1000:.1f} ms  (the whole in-process loop: {loop_cpu / attempts * 1000:.1f} ms)")
+        print("  the run's CPU per attempt, by process: " + ", ".join(
+            f"{r} {c / n * 1000:.1f} ms (kernel {kernel[r] / n * 1000:.1f})"
+            for r, c in sorted(roles.items(), key=lambda kv: -kv[1])) + f" = {total * 1000:.1f} ms")
+        print(f"  the run directory: {files_in(run_dir) / attempts:.2f} files per attempt")
+        print(f"  ratio run / environment work: {total / work:.2f}x (target <= 1.15x)")
+    return work, total, ratios
 
 
 def main() -> None:
@@ -237,33 +255,8 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=1, help="measurements of each environment, interleaved")
     a = ap.parse_args()
     print(f"load {os.getloadavg()[0]:.2f} (1-min) at the start, {psutil.cpu_count()} CPUs")
-    rows = []
-    for name in a.envs.split(","):
-        runs, limit = SIZES[name][1 if a.quick else 0]
-        config = RunConfig(env=name, model="mock", runs=runs, limit=limit)
-        ratios = []
-        for round_ in range(a.rounds):
-            attempts, stages, loop_cpu = asyncio.run(env_work(config))
-            work = sum(stages.values()) / attempts
-            with tempfile.TemporaryDirectory(prefix="dpcpu") as tmp:
-                n, roles, kernel, window = pipeline(config, os.path.join(tmp, "run"))
-                files = files_in(os.path.join(tmp, "run")) / attempts
-                create_ms = file_creation_ms(tmp)
-            total = sum(roles.values()) / n
-            ratios.append(total / work)
-            label = f" (round {round_ + 1} of {a.rounds})" if a.rounds > 1 else ""
-            print(f"\n{name}{label}: {attempts} attempts in-process; run window {n} attempts in {window:.1f} s; "
-                  f"load {os.getloadavg()[0]:.2f}")
-            print("  environment's own work per attempt (in-process): " + ", ".join(
-                f"{s} {stages.get(s, 0.0) / attempts * 1000:.1f} ms" for s in ("simulate", "render", "encode"))
-                + f" = {work * 1000:.1f} ms  (the whole in-process loop: {loop_cpu / attempts * 1000:.1f} ms)")
-            print("  the run's CPU per attempt, by process: " + ", ".join(
-                f"{r} {c / n * 1000:.1f} ms (kernel {kernel[r] / n * 1000:.1f})"
-                for r, c in sorted(roles.items(), key=lambda kv: -kv[1])) + f" = {total * 1000:.1f} ms")
-            print(f"  the run directory: {files:.2f} files per attempt; creating a file on its disk costs "
-                  f"{create_ms:.2f} ms of kernel CPU now (~{files * create_ms:.1f} ms per attempt)")
-            print(f"  ratio run / environment work: {total / work:.2f}x (target <= 1.15x)")
-        rows.append((name, work, total, ratios))
+    with tempfile.TemporaryDirectory(prefix="dpcpu") as scratch:
+        rows = [(name, *measure(name, a.quick, a.rounds, scratch)) for name in a.envs.split(",")]
     print("\nsummary (ms per attempt, the last round): env  work  run  ratio  [every round; median]")
     for name, work, total, ratios in rows:
         every = f"  [{', '.join(f'{r:.2f}' for r in ratios)}; median {statistics.median(ratios):.2f}x]" if len(
