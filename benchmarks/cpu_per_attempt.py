@@ -222,18 +222,19 @@ def files_in(path: str) -> int:
     return sum(len(files) for _, _, files in os.walk(path))
 
 
-def measure(name: str, quick: bool, rounds: int, scratch: str) -> tuple[float, float, list[float]]:
-    """(environment work, run CPU per attempt of the last round, every round's ratio)."""
+def measure(name: str, quick: bool, rounds: int, scratch: str) -> tuple[list[float], list[float]]:
+    """(environment work per attempt, the run's CPU per attempt): a pair per round."""
     runs, limit = SIZES[name][1 if quick else 0]
     config = RunConfig(env=name, model="mock", runs=runs, limit=limit)
-    ratios = []
+    works, totals = [], []
     for round_ in range(rounds):
         attempts, stages, loop_cpu = asyncio.run(env_work(config))
         work = sum(stages.values()) / attempts
         run_dir = os.path.join(scratch, f"{name}{round_}")  # removed at the end (see the docstring)
         n, roles, kernel, window = pipeline(config, run_dir)
         total = sum(roles.values()) / n
-        ratios.append(total / work)
+        works.append(work)
+        totals.append(total)
         label = f" (round {round_ + 1} of {rounds})" if rounds > 1 else ""
         print(f"\n{name}{label}: {attempts} attempts in-process; run window {n} attempts in {window:.1f} s; "
               f"load {os.getloadavg()[0]:.2f}")
@@ -245,7 +246,7 @@ def measure(name: str, quick: bool, rounds: int, scratch: str) -> tuple[float, f
             for r, c in sorted(roles.items(), key=lambda kv: -kv[1])) + f" = {total * 1000:.1f} ms")
         print(f"  the run directory: {files_in(run_dir) / attempts:.2f} files per attempt")
         print(f"  ratio run / environment work: {total / work:.2f}x (target <= 1.15x)")
-    return work, total, ratios
+    return works, totals
 
 
 def main() -> None:
@@ -257,11 +258,11 @@ def main() -> None:
     print(f"load {os.getloadavg()[0]:.2f} (1-min) at the start, {psutil.cpu_count()} CPUs")
     with tempfile.TemporaryDirectory(prefix="dpcpu") as scratch:
         rows = [(name, *measure(name, a.quick, a.rounds, scratch)) for name in a.envs.split(",")]
-    print("\nsummary (ms per attempt, the last round): env  work  run  ratio  [every round; median]")
-    for name, work, total, ratios in rows:
-        every = f"  [{', '.join(f'{r:.2f}' for r in ratios)}; median {statistics.median(ratios):.2f}x]" if len(
-            ratios) > 1 else ""
-        print(f"  {name:9s} {work * 1000:6.1f} {total * 1000:6.1f} {total / work:5.2f}x{every}")
+    print("\nsummary (ms per attempt; over several rounds: the medians and their ratio, then each round's ratio)")
+    for name, works, totals in rows:
+        work, total = statistics.median(works), statistics.median(totals)
+        every = f"  [{', '.join(f'{t / w:.2f}' for w, t in zip(works, totals))}]" if len(works) > 1 else ""
+        print(f"  {name:9s} environment work {work * 1000:6.1f}  run {total * 1000:6.1f}  ratio {total / work:5.2f}x{every}")
     print(f"load {os.getloadavg()[0]:.2f} (1-min) at the end")
 
 
