@@ -176,6 +176,13 @@ def test_the_server_takes_answers_from_its_page_only(tmp_path):
             assert state["last"]["feedback"] and state["last"]["frames"]
             frame = await client.get(f"/api/last/{state['last']['id']}/0.png")
             assert frame.status == 200 and (await frame.read()).startswith(b"\x89PNG")
+            # The page may still be loading the answered decision's pictures: they stay served.
+            answered = await client.get(image["image"])
+            assert answered.status == 200 and await answered.read() == png
+            unknown = [await client.get(image["image"].replace("/0.png", "/-1.png")),
+                       await client.get(image["image"].replace("/0.png", "/9.png")),
+                       await client.get(f"/api/last/{state['last']['id'] + 1}/0.png")]
+            assert [r.status for r in unknown] == [404, 404, 404]
         play.cancel()
 
     try:

@@ -18,6 +18,7 @@ import asyncio
 import os
 import re
 import time
+from collections import OrderedDict
 from pathlib import Path
 from typing import Any, Callable
 
@@ -35,6 +36,9 @@ PLAYER_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,39}$")
 JOURNAL = "human.jsonl"
 JOURNAL_MAX_BYTES = 64 * 1024**2  # a person's answers are a few hundred bytes each
 MAX_ANSWER_CHARS = 4096  # the controls write a few dozen characters; a typed answer is bounded too
+# Decisions whose pictures stay served once answered: a page may still be loading the pictures
+# of a decision the person (or a test) has already answered, and a missing picture is an error.
+RECENT_SERVED = 8
 
 
 def player_model(name: str) -> str:
@@ -167,6 +171,7 @@ class Desk:
     def __init__(self) -> None:
         self.pending: Pending | None = None
         self.answered: dict[str, Any] | None = None  # the latest decision taken: where, and the action
+        self.images: OrderedDict[str, list[Image]] = OrderedDict()  # the latest prompts' images, by digest
         self.version = 0
         self._listeners: set[asyncio.Queue] = set()
 
@@ -191,6 +196,7 @@ class Desk:
     async def ask(self, request: ModelRequest, digest: str) -> tuple[str, float]:
         """Wait for the person's answer to `request`: (text, seconds the person took)."""
         pending = self.pending = Pending(request, digest)
+        remember(self.images, digest, pending.images)
         self.changed()
         try:
             text = await pending.answer
@@ -232,3 +238,11 @@ class HumanModel:
         self.desk.answered = {"task": ctx.task_id, "run": ctx.run, "attempt": ctx.attempt, "step": ctx.step,
                               "text": text, "seconds": seconds}
         return ModelResponse(text=text, seconds=seconds)
+
+
+def remember(recent: OrderedDict, key: Any, value: Any) -> None:
+    """Keep `value` under `key` among the RECENT_SERVED newest."""
+    recent[key] = value
+    recent.move_to_end(key)
+    while len(recent) > RECENT_SERVED:
+        recent.popitem(last=False)

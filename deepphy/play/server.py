@@ -73,28 +73,23 @@ class PlayServer:
         return response
 
     async def prompt_image(self, request: web.Request) -> web.Response:
-        """An image of the waiting prompt (the observation's are in memory only)."""
-        pending = self.desk.pending
+        """An image of the waiting prompt, or of one of the latest (the observation's are in
+        memory only; a page may still be loading a decision's pictures once it is answered)."""
+        images = self.desk.images.get(request.match_info["digest"], [])
         try:
-            index = int(request.match_info["index"])
-        except ValueError:
-            raise web.HTTPNotFound() from None
-        if pending is None or pending.digest != request.match_info["digest"] or not 0 <= index < len(pending.images):
-            raise web.HTTPNotFound(text="that decision is no longer waiting")
-        png = await asyncio.to_thread(pending.images[index].load)
+            image = images[_index(request.match_info["index"])]
+        except (ValueError, IndexError):
+            raise web.HTTPNotFound(text="no such picture (that decision is long past: reload the page)") from None
+        png = await asyncio.to_thread(image.load)
         return web.Response(body=png, content_type="image/png", headers={"Cache-Control": "max-age=3600"})
 
     async def last_frame(self, request: web.Request) -> web.Response:
-        """A key frame of what the latest decision did."""
-        last, frames = self.session.last, self.session.last_frames
+        """A key frame of what the latest decision did (or one of the few before it)."""
         try:
-            index = int(request.match_info["index"])
-            ok = last is not None and str(last["id"]) == request.match_info["id"] and 0 <= index < len(frames)
-        except ValueError:
-            ok = False
-        if not ok:
-            raise web.HTTPNotFound(text="no such frame")
-        return web.Response(body=frames[index], content_type="image/png", headers={"Cache-Control": "max-age=3600"})
+            png = self.session.frames[int(request.match_info["id"])][_index(request.match_info["index"])]
+        except (ValueError, KeyError, IndexError):
+            raise web.HTTPNotFound(text="no such frame") from None
+        return web.Response(body=png, content_type="image/png", headers={"Cache-Control": "max-age=3600"})
 
     # -- answers --------------------------------------------------------------------------
 
@@ -163,6 +158,13 @@ def loopback_only(server: PlayServer):
         return await handler(request)
 
     return check
+
+
+def _index(text: str) -> int:
+    """A picture's index in a URL: a whole number from 0 (ValueError otherwise)."""
+    if not text.isdigit():
+        raise ValueError(text)
+    return int(text)
 
 
 def make_app(server: PlayServer) -> web.Application:

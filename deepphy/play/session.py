@@ -11,13 +11,14 @@ as the environment is beats waiting for a cluster to start.
 from __future__ import annotations
 
 import asyncio
+from collections import OrderedDict
 from pathlib import Path
 from typing import Any, Callable
 
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import Action, Environment, Observation, StepResult, Task
 from deepphy.play.background import off_loop
-from deepphy.play.human import Desk, HumanModel, Journal
+from deepphy.play.human import Desk, HumanModel, Journal, remember
 from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished
 from deepphy.runs.store import RunStore, read_records
 
@@ -80,7 +81,7 @@ class PlaySession:
         self.summaries: list[AttemptSummary] = [r.summary() for r in self.existing]
         self.decision_s: list[float] = [s for r in self.existing for s in r.timing.decision_s]
         self.last: dict[str, Any] | None = None  # what the latest decision did
-        self.last_frames: list[bytes] = []  # its key frames (PNG)
+        self.frames: OrderedDict[int, list[bytes]] = OrderedDict()  # the latest decisions' key frames (PNG), by id
         self.busy = False  # the world is being simulated
         self.warming: asyncio.Future | None = None  # the environment's warm-up, under way
         self.finished = False
@@ -105,7 +106,7 @@ class PlaySession:
     def stepped(self, result: StepResult) -> None:
         """A decision's consequence, for the page (the record comes when the attempt ends)."""
         answered = self.desk.answered
-        self.last_frames = [frame.png for frame in result.key_frames]
+        remember(self.frames, self.desk.version, [frame.png for frame in result.key_frames])
         self.last = {
             "id": self.desk.version, **(answered or {}), "feedback": result.feedback, "done": result.done,
             "success": result.success, "invalid_reason": result.invalid_reason, "stars": result.stars,
@@ -122,7 +123,6 @@ class PlaySession:
             last = self.last = {"id": self.desk.version, "task": record.task, "run": record.run,
                                 "attempt": record.attempt, "feedback": record.feedback, "done": True,
                                 "success": False, "invalid_reason": record.invalid_reason, "frames": []}
-            self.last_frames = []
         last["record"] = {"success": record.success, "stars": record.stars, "outcome": record.feedback}
         self.desk.changed()
 
