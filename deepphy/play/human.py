@@ -240,9 +240,9 @@ class HumanModel:
         return ModelResponse(text=text, seconds=seconds)
 
 
-def remember(recent: OrderedDict, key: Any, value: Any) -> None:
-    """Keep `value` under `key` among the RECENT_SERVED newest."""
+def remember(recent: OrderedDict, key: Any, value: Any, keep: int = RECENT_SERVED) -> None:
+    """Keep `value` under `key` among the `keep` newest."""
     recent[key] = value
     recent.move_to_end(key)
-    while len(recent) > RECENT_SERVED:
+    while len(recent) > keep:
         recent.popitem(last=False)

@@ -26,6 +26,7 @@ from aiohttp import web
 from deepphy.envs import InvalidAction
 from deepphy.envs.base import FILM_FPS, Environment
 from deepphy.play.background import off_loop
+from deepphy.play.human import remember
 from deepphy.runs.records import AttemptRecord, StepRecord
 from deepphy.runs.store import read_config, read_records
 
@@ -133,9 +134,7 @@ class Films:
         finally:
             if making.done():
                 self._making.pop(film_id, None)
-        self._films[film_id] = film
-        while len(self._films) > FILMS_KEPT:
-            self._films.popitem(last=False)
+        remember(self._films, film_id, film, FILMS_KEPT)
         return film
 
     def picture(self, film_id: str, index: int) -> bytes | None:
