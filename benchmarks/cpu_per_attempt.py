@@ -43,6 +43,7 @@ from contextlib import contextmanager
 import psutil
 import statistics
 
+from deepphy.allocator import keep_freed_memory
 from deepphy.chat import Image
 from deepphy.config import RunConfig
 from deepphy.protocol import MemoryArtifacts, run_episode
@@ -139,6 +140,7 @@ async def env_work(config: RunConfig) -> tuple[int, dict[str, float], float]:
 
     spec, tasks, k_max = resolve(config)
     cls = spec.load()
+    keep_freed_memory()  # the allocator's settings of an environment worker
     options = cls.Options(**config.env_options)
     cls.warm_up(options, tasks)
     clock = StageClock()

@@ -23,6 +23,7 @@ from typing import Any, Sequence
 
 import ray
 
+from deepphy.allocator import keep_freed_memory
 from deepphy.envs import Action, EnvSpec, Environment, Observation, StepResult, Task
 
 
@@ -33,6 +34,7 @@ class LostEpisode(KeyError):
 class EnvWorkerImpl:
     def __init__(self, spec: EnvSpec, options: dict[str, Any], log_path: str | None = None) -> None:
         _redirect_output(log_path)  # library noise (XLA, numba, deprecations) goes to the run's log
+        keep_freed_memory()  # attempts reuse their arrays' pages instead of faulting them in (deepphy/allocator.py)
         self.cls: type[Environment] = spec.load()
         self.batches_steps = self.cls.step_many.__func__ is not Environment.step_many.__func__  # type: ignore[attr-defined]
         self.options = self.cls.Options(**options)
