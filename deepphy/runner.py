@@ -298,14 +298,17 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})
         actors = [*(env_workers if shared is None else []), *model_actors, metrics,
                   *([limiter] if limiter is not None and shared is None else [])]
-        _started(metrics.add.remote([r.summary() for r in existing], resumed=True), "the metrics actor", runtime)
+        # Not waited for here: the metrics actor's process starts while the workers start and the
+        # first attempts run (its calls queue in order until it is up); `_drive` checks it came up.
+        metrics_ready = metrics.add.remote([r.summary() for r in existing], resumed=True)
         if view:
             view.stop()
             view = None
         scheduler = Scheduler(config, runtime, spec, tasks, store, env_workers, model, metrics, k_max)
         if shared is not None:
             shared.watch(metrics, scheduler)
-        asyncio.run(_drive(scheduler, existing, env_workers, metrics, runtime, stream, store.path, status))
+        asyncio.run(_drive(scheduler, existing, env_workers, metrics, metrics_ready, runtime, stream, store.path,
+                           status))
         # The run directory, not a live actor, says what is done.
         records = read_records(out)
         return RunOutcome(
@@ -433,12 +436,19 @@ def _default_workers(resource: str | None) -> int:
     return max(1, int(sum(n["Resources"].get("CPU", 0) for n in nodes)))
 
 
-async def _drive(scheduler, existing, env_workers, metrics, runtime: RuntimeOptions, stream, run_dir: Path,
-                 status: RunStatus) -> None:
+async def _drive(scheduler, existing, env_workers, metrics, metrics_ready, runtime: RuntimeOptions, stream,
+                 run_dir: Path, status: RunStatus) -> None:
     """Start the workers, warm them up (compiling kernels on first use), then run the
     scheduler, with the progress view alongside. Each phase is told to the metrics actor
-    (attempts/s and ETA count from "running") and written to the run directory."""
+    (attempts/s and ETA count from "running") and written to the run directory.
+
+    `metrics_ready`: the metrics actor's first call. Its process is a third one to start (a
+    local Ray has one ready per CPU, which the workers take); waiting for it delayed the first
+    attempt by ~0.3 s on the 2-core machine, so nothing waits for it. Should it not start
+    within the step timeout, the run stops (the attempts in flight are recorded first) with
+    one line, as for the workers."""
     phase = [status.phase]
+    metrics_up = asyncio.ensure_future(_metrics_started(metrics_ready, scheduler, runtime))
 
     def enter(name: str) -> None:
         phase[0] = name
@@ -459,7 +469,11 @@ async def _drive(scheduler, existing, env_workers, metrics, runtime: RuntimeOpti
                                      "command again to resume") from None
         enter("running")
         await scheduler.run(existing)
+        await metrics_up  # a run shorter than the metrics actor's start waits for it here
+        if scheduler.fatal is not None:
+            raise scheduler.fatal
     finally:
+        metrics_up.cancel()
         if view is not None:
             view.cancel()
             try:
@@ -467,6 +481,18 @@ async def _drive(scheduler, existing, env_workers, metrics, runtime: RuntimeOpti
             except asyncio.CancelledError:
                 pass
             await _print_snapshot(scheduler, metrics, phase[0], stream, final=True)
+
+
+async def _metrics_started(ready, scheduler, runtime: RuntimeOptions) -> None:
+    """Wait for the metrics actor's first call; if it never returns, stop the run (as a
+    fatal error: the episodes' attempts in flight finish and are recorded, then it raises)."""
+    try:
+        await asyncio.wait_for(ready, timeout=runtime.step_timeout_s)
+    except asyncio.TimeoutError:
+        scheduler.fatal = scheduler.fatal or ClusterUnavailable(
+            f"the metrics actor did not start within {runtime.step_timeout_s:g} s (an overloaded machine, or no "
+            "room on the cluster); run the same command again to resume")
+        scheduler.stop_requested = True
 
 
 async def _progress(scheduler, metrics, phase: list[str], stream) -> None:

@@ -159,6 +159,29 @@ def test_crashed_env_worker_attempt_is_retried(baseline, tmp_path):
     assert views(tmp_path) == views(baseline)
 
 
+def test_attempts_do_not_wait_for_the_metrics_actor_but_it_must_start(baseline, tmp_path, monkeypatch):
+    """The metrics actor's process starts while the attempts run. One that never starts (here:
+    it asks for a resource no node has) stops the run within the step timeout with one line,
+    after recording attempts meanwhile; the resume finishes the run as if nothing happened."""
+    import deepphy.actors.metrics_actor as metrics_actor
+    from deepphy.runner import ClusterUnavailable
+
+    def never_placed(total, k_max, max_steps=1, *, name=None, run=None):
+        return metrics_actor.MetricsActor.options(num_cpus=0, name=name, resources={"nowhere": 1}).remote(
+            total, k_max, max_steps, run)
+
+    monkeypatch.setattr(metrics_actor, "make_metrics_actor", never_placed)
+    started = time.monotonic()
+    with pytest.raises(ClusterUnavailable, match="the metrics actor did not start within 5 s"):
+        evaluate(CONFIG, tmp_path, RUNTIME.model_copy(update={"step_timeout_s": 5.0}))
+    assert time.monotonic() - started < 60
+    assert read_records(tmp_path), "no attempt ran while the metrics actor was starting"
+    monkeypatch.undo()
+    assert evaluate(CONFIG, tmp_path, RUNTIME).complete
+    assert_complete(tmp_path, CONFIG)
+    assert views(tmp_path) == views(baseline)
+
+
 def test_wm_format_records_predictions(ray_cluster, tmp_path):
     config = RunConfig(**{**CONFIG.model_dump(), "format": "wm", "runs": 1, "tasks": TASKS[:2]})
     evaluate(config, tmp_path, RUNTIME)
