@@ -58,7 +58,7 @@ RENDERERS = {
 }
 # (runs, task limit) per environment: full and --quick sizes (a few hundred attempts; fewer for
 # the slow simulators).
-SIZES = {"iphyre": ((5, 40), (2, 40)), "phyre": ((1, 100), (1, 30)), "pooltool": ((1, 40), (1, 12))}
+SIZES = {"iphyre": ((5, 40), (2, 40)), "phyre": ((3, 100), (1, 30)), "pooltool": ((1, 40), (1, 12))}
 SAMPLE_S = 0.25
 
 
