@@ -76,7 +76,7 @@ async def run_attempt(
 ) -> AttemptRecord:
     """Run attempt `attempt` (1-based) of `task` in repetition `run`, after the failed
     attempts `previous`, and return its record. Errors of the handles propagate."""
-    history = [past_attempt(r, spec, artifacts) for r in previous]
+    history = [_shown(r, spec, artifacts) for r in previous]
     tried = tried_actions(previous)
     timing = Timing(started=time.time())
     stats = ModelStats()
@@ -185,6 +185,27 @@ async def run_episode(
 def tried_actions(previous: Sequence[AttemptRecord]) -> list[str]:
     """The actions of earlier attempts, in canonical syntax (MOCK avoids repeating them)."""
     return [s.action_text for r in previous for s in r.steps if s.action_text is not None]
+
+
+# Each failed attempt as the model sees it, made once and shown again by the episode's later
+# attempts (with its prompt parts, `PastAttempt.parts`): rebuilding every earlier attempt for
+# every new one was a sixth of the driver's CPU per PHYRE attempt. Keyed by the record's
+# identity and checked against it (the entry holds the record, so its id is not reused while
+# the entry lives); bounded, so a long run's memory stays flat. A resumed run's records are
+# new objects: made again, the same from the same record.
+_SHOWN: dict[int, tuple[AttemptRecord, EnvSpec, Artifacts, PastAttempt]] = {}
+SHOWN_REMEMBERED = 8192
+
+
+def _shown(record: AttemptRecord, spec: EnvSpec, artifacts: Artifacts) -> PastAttempt:
+    entry = _SHOWN.get(id(record))
+    if entry is not None and entry[0] is record and entry[1] is spec and entry[2] is artifacts:
+        return entry[3]
+    if len(_SHOWN) >= SHOWN_REMEMBERED:
+        _SHOWN.clear()
+    past = past_attempt(record, spec, artifacts)
+    _SHOWN[id(record)] = (record, spec, artifacts, past)
+    return past
 
 
 def past_attempt(record: AttemptRecord, spec: EnvSpec, artifacts: Artifacts) -> PastAttempt:

@@ -338,7 +338,9 @@ class Scheduler:
         if self.budget_hit:  # abandon the attempt unrecorded: a resume re-runs it
             raise BudgetExhausted(f"cost budget ${self.runtime.max_cost_usd:g} reached (${self.spent_usd:.4f} spent)")
         try:
-            response = await asyncio.wait_for(self.model.complete(request), timeout=self.runtime.model_timeout_s)
+            # A deadline on this task, not `wait_for`'s task per request (a random baseline answers at once).
+            async with asyncio.timeout(self.runtime.model_timeout_s):
+                response = await self.model.complete(request)
         except AccessDenied as e:  # the key is refused: no attempt can succeed
             raise AccessDenied(str(getattr(e, "cause", e)), kind="denied") from None
         except ModelError as e:  # from a model worker: the error's own words, not Ray's wrapping
