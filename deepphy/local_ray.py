@@ -33,6 +33,12 @@ from typing import Callable
 START_TRIES = 3
 SESSION_WAIT_S = 120.0  # the GCS's port file (Ray's default wait is 30 s)
 WORKER_REGISTER_TIMEOUT_S = 300  # a worker process's start, imports included (Ray's default: 60 s)
+# Results up to this size travel inside the reply to their caller instead of through the object
+# store (Ray's default: 100 KiB). An environment worker's answer to a batch of decisions is
+# 30-800 KiB (up to 8 steps of 10-100 KiB, their images as PNG): through the object store each
+# answer costs a put, a get and a release in the raylet and both processes (measured with
+# benchmarks/cpu_per_attempt.py: Ray's own processes 0.4 -> 0.2 ms per I-PHYRE attempt).
+INLINE_RESULT_MAX = 4 * 1024 * 1024
 # What a failed start's logs say, most telling first.
 CAUSES = [
     (re.compile(r"address already in use", re.I), "a port it needs is in use"),
@@ -139,7 +145,8 @@ def start(num_cpus: int, node_ip: str, say: Callable[[str], None] = lambda _: No
                               "no_monitor": True}):
                 ray.init(address="local", num_cpus=num_cpus, _node_ip_address=node_ip,
                          _system_config={"worker_register_timeout_seconds": WORKER_REGISTER_TIMEOUT_S,
-                                                "enable_metrics_collection": False},
+                                         "max_direct_call_object_size": INLINE_RESULT_MAX,
+                                         "enable_metrics_collection": False},
                          **init_kwargs)
             return
         except Exception as e:  # noqa: BLE001 - Ray raises plain Exceptions here

@@ -42,3 +42,30 @@ def test_decisions_of_one_loop_turn_are_one_call_and_each_keeps_its_own_outcome(
         assert stats["calls"] == 2 and stats["steps"] == 4, stats  # 5 decisions in 2 calls; the ghost never stepped
     finally:
         ray.kill(worker)
+
+
+def test_a_batch_of_answers_comes_back_inside_the_reply_not_through_the_object_store(ray_cluster):
+    """A worker's answer to a batch of I-PHYRE decisions is larger than Ray's default limit for
+    results returned inline (100 KiB); the local Ray raises the limit (deepphy.local_ray), so the
+    answer costs no object store put, get and release."""
+    import ray
+
+    from deepphy.actors.env_worker import make_env_worker
+    from deepphy.config import RunConfig
+    from deepphy.envs import get_spec
+    from deepphy.local_ray import INLINE_RESULT_MAX
+    from deepphy.runner import resolve
+
+    spec, tasks, _ = resolve(RunConfig(env="iphyre", model="mock", runs=1, limit=8))
+    cls = get_spec("iphyre").load()
+    worker = make_env_worker(spec, {}, num_cpus=0)
+    try:
+        plans = [cls(cls.Options()).reset(t).action_space.parse("[]") for t in tasks]
+        ref = worker.step_batch.remote([(f"e{i}", plan, t) for i, (plan, t) in enumerate(zip(plans, tasks))])
+        answers = ray.get(ref, timeout=RAY_TIMEOUT_S)
+        assert all(type(a).__name__ == "StepResult" for a in answers), answers
+        where = ray.experimental.get_object_locations([ref], timeout_ms=int(RAY_TIMEOUT_S * 1000))[ref]
+        assert 100 * 1024 < where["object_size"] < INLINE_RESULT_MAX, where
+        assert where["node_ids"] == [], where  # in the caller's memory, in no node's object store
+    finally:
+        ray.kill(worker)
