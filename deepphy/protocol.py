@@ -194,7 +194,7 @@ def tried_actions(previous: Sequence[AttemptRecord]) -> list[str]:
 # the entry lives); bounded, so a long run's memory stays flat. A resumed run's records are
 # new objects: made again, the same from the same record.
 _SHOWN: dict[int, tuple[AttemptRecord, EnvSpec, Artifacts, PastAttempt]] = {}
-SHOWN_REMEMBERED = 8192
+SHOWN_REMEMBERED = 4096
 
 
 def _shown(record: AttemptRecord, spec: EnvSpec, artifacts: Artifacts) -> PastAttempt:

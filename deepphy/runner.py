@@ -18,6 +18,7 @@ from pydantic import ValidationError
 from deepphy import reaper
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.agents import endpoint_config, make_agent
+from deepphy.collector import frozen_heap
 from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.messages import validation_message
 from deepphy.metrics import figures as F
@@ -307,8 +308,9 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
         scheduler = Scheduler(config, runtime, spec, tasks, store, env_workers, model, metrics, k_max)
         if shared is not None:
             shared.watch(metrics, scheduler)
-        asyncio.run(_drive(scheduler, existing, env_workers, metrics, metrics_ready, runtime, stream, store.path,
-                           status))
+        with frozen_heap():  # the heap of the start, Ray's included, is not scanned again (deepphy/collector.py)
+            asyncio.run(_drive(scheduler, existing, env_workers, metrics, metrics_ready, runtime, stream, store.path,
+                               status))
         # The run directory, not a live actor, says what is done.
         records = read_records(out)
         return RunOutcome(
