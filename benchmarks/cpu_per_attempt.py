@@ -22,7 +22,9 @@ this machine's ext4 (mounted without a journal) creating a file costs 0.02-0.9 m
 CPU: without a journal ext4 will not reuse an inode freed in the last 60-300 s and scans
 past each one (`recently_deleted` in perf), so a `rm -rf` of a few thousand files makes the
 next minutes' file creations dear. The rounds' run directories are therefore all removed at
-the end, not between rounds (other processes' deletions still count).
+the end, not between rounds (other processes' deletions still count). `TMPDIR=/dev/shm` puts
+them on tmpfs, which leaves the file system's share out of the comparison (how the before/after
+figures of the driver's CPU in the README were taken).
 
     .venv/bin/python benchmarks/cpu_per_attempt.py [--envs iphyre,phyre,pooltool] [--quick] [--rounds N]
 """
