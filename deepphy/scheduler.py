@@ -212,6 +212,8 @@ class Scheduler:
         self.budget_hit = False
         self.in_flight = 0
         self.decisions = 0  # model requests answered in this session
+        self.recorded = 0  # attempt records this session wrote to the run directory
+        self.episodes_finished = 0  # episodes this session brought to their end (solved, or out of attempts)
         self.initial = ObservationCache(256)  # first observations: an attempt's reset rides with its first step
         self.unsent: list[AttemptSummary] = []  # for the metrics actor, sent in batches (flush)
 
@@ -270,8 +272,11 @@ class Scheduler:
                 self._record_error(task, run, attempt, error)
                 return
             self.store.append(record)
+            self.recorded += 1
             records.append(record)
             self.unsent.append(record.summary())
+        if episode_finished(records, self.k_max):
+            self.episodes_finished += 1
 
     def send_summaries(self) -> None:
         """Hand the new attempts' summaries to the metrics actor, in one call."""
