@@ -16,7 +16,8 @@ import logging
 import time
 import traceback
 from collections import defaultdict
-from typing import Any, Sequence
+from contextlib import contextmanager
+from typing import Any, Iterator, Sequence
 
 import ray
 from ray.exceptions import ActorDiedError, ActorUnavailableError, RayActorError
@@ -115,31 +116,58 @@ class StepBatcher:
                 future.set_result(outcome)
 
 
+class FirstObservations:
+    """The driver's first observations by task (reset is deterministic: the contract), each
+    asked of a worker once. An attempt that starts while its task's is on its way waits for
+    that answer instead of asking too: a run starts hundreds of episodes at once, and each
+    asking had both workers render every task's first scene before their first step."""
+
+    def __init__(self, size: int) -> None:
+        self.cache = ObservationCache(size)
+        self.asking: dict[str, asyncio.Event] = {}  # set when that answer came (or failed)
+
+    async def get(self, task: Task) -> Observation | None:
+        while (asking := self.asking.get(task.id)) is not None:  # (another waiter may have asked again)
+            await asking.wait()  # bounded: the asker's call has the step timeout
+        return self.cache.get(task.id)  # None if the asker failed: then this attempt asks
+
+    @contextmanager
+    def asking_for(self, task: Task) -> Iterator[None]:
+        event = self.asking[task.id] = asyncio.Event()
+        try:
+            yield
+        finally:
+            event.set()
+            if self.asking.get(task.id) is event:
+                del self.asking[task.id]
+
+
 class WorkerEnv:
     """The protocol's `EnvHandle` over one environment worker, for one attempt: each decision
     goes through the worker's `StepBatcher` (the reset rides with the first step when the
     observation is known; the worker releases the instance when a step ends the attempt)."""
 
-    def __init__(self, batcher: StepBatcher, episode: str, initial: ObservationCache) -> None:
+    def __init__(self, batcher: StepBatcher, episode: str, initial: FirstObservations) -> None:
         self.batcher, self.worker, self.episode, self.initial = batcher, batcher.worker, episode, initial
         self.pending_reset: Task | None = None
         self.held = False  # the worker holds an instance for this attempt
 
     async def reset(self, task: Task) -> Observation:
-        known = self.initial.get(task.id)  # reset is deterministic (the contract)
+        known = await self.initial.get(task)
         if known is not None:
             self.pending_reset = task
             return known
         self.held = True
-        ref = self.worker.reset.remote(self.episode, task)
-        try:
-            obs = await asyncio.wait_for(ref, timeout=self.batcher.timeout_s)
-        except WORKER_LOST as e:
-            raise WorkerLost(type(e).__name__) from e
-        except asyncio.TimeoutError:
-            ray.cancel(ref, force=False)
-            raise WorkerLost(f"no answer within {self.batcher.timeout_s:g} s") from None
-        return self.initial.put(task.id, obs)
+        with self.initial.asking_for(task):
+            ref = self.worker.reset.remote(self.episode, task)
+            try:
+                obs = await asyncio.wait_for(ref, timeout=self.batcher.timeout_s)
+            except WORKER_LOST as e:
+                raise WorkerLost(type(e).__name__) from e
+            except asyncio.TimeoutError:
+                ray.cancel(ref, force=False)
+                raise WorkerLost(f"no answer within {self.batcher.timeout_s:g} s") from None
+            return self.initial.cache.put(task.id, obs)
 
     async def step(self, action: Action) -> StepResult:
         reset, self.pending_reset = self.pending_reset, None
@@ -212,7 +240,9 @@ class Scheduler:
         self.budget_hit = False
         self.in_flight = 0
         self.decisions = 0  # model requests answered in this session
-        self.initial = ObservationCache(256)  # first observations: an attempt's reset rides with its first step
+        self.recorded = 0  # attempt records this session wrote to the run directory
+        self.episodes_finished = 0  # episodes this session brought to their end (solved, or out of attempts)
+        self.initial = FirstObservations(256)  # an attempt's reset rides with its first step
         self.unsent: list[AttemptSummary] = []  # for the metrics actor, sent in batches (flush)
 
     # -- top level --------------------------------------------------------------------
@@ -270,8 +300,11 @@ class Scheduler:
                 self._record_error(task, run, attempt, error)
                 return
             self.store.append(record)
+            self.recorded += 1
             records.append(record)
             self.unsent.append(record.summary())
+        if episode_finished(records, self.k_max):
+            self.episodes_finished += 1
 
     def send_summaries(self) -> None:
         """Hand the new attempts' summaries to the metrics actor, in one call."""

@@ -78,7 +78,7 @@ def test_an_attempt_that_raises_is_isolated_logged_and_retried_on_resume(ray_clu
 
     from deepphy.cli import run_summary
     from deepphy.config import RunConfig, RuntimeOptions
-    from deepphy.runner import evaluate
+    from deepphy.runner import episodes_done, evaluate
     from deepphy.runs.store import read_records
 
     register(Explodes.spec)
@@ -91,6 +91,9 @@ def test_an_attempt_that_raises_is_isolated_logged_and_retried_on_resume(ray_clu
         assert not outcome.complete and outcome.episodes_done == 9 and len(outcome.errored) == 1
         assert "flag-05" in outcome.errored[0] and "RuntimeError" in outcome.errored[0]
         assert {r.task for r in read_records(run_dir)} == {f"flag-{f:02d}" for f in range(2, 12)} - {"flag-05"}
+        # counted as the records were written, and what the directory says
+        assert outcome.new_records == len(read_records(run_dir))
+        assert (outcome.episodes_done, outcome.episodes_total) == episodes_done(config, run_dir)
         errors = [json.loads(line) for line in (run_dir / "errors.jsonl").read_text().splitlines()]
         assert [(e["task"], e["attempt"]) for e in errors] == [("flag-05", 1)]
         assert "the cart left the rail" in errors[0]["message"] and "Traceback" in errors[0]["traceback"]
@@ -100,6 +103,7 @@ def test_an_attempt_that_raises_is_isolated_logged_and_retried_on_resume(ray_clu
         trigger.unlink()  # the bug is fixed: the resume runs the errored episode and only it
         again = evaluate(config, run_dir, RuntimeOptions(progress=False, env_workers=1))
         assert again.complete and not again.errored and again.new_records >= 1
+        assert again.new_records == len(read_records(run_dir)) - outcome.new_records
         assert {r.task for r in read_records(run_dir) if r.task == "flag-05"} == {"flag-05"}
     finally:
         unregister("explodes")

@@ -69,3 +69,45 @@ def test_a_batch_of_answers_comes_back_inside_the_reply_not_through_the_object_s
         assert where["node_ids"] == [], where  # in the caller's memory, in no node's object store
     finally:
         ray.kill(worker)
+
+
+def test_attempts_starting_together_ask_a_worker_for_their_tasks_first_observation_once():
+    """Hundreds of episodes start at once: the first to reset a task asks a worker, the others
+    wait for that answer (their resets ride with their first steps); if that worker is lost,
+    a waiting attempt asks again. No Ray: a worker whose resets are counted."""
+    from deepphy.actors.env_worker import LostEpisode
+    from deepphy.envs import Task
+    from deepphy.scheduler import FirstObservations, StepBatcher, WorkerEnv, WorkerLost
+
+    class Worker:
+        def __init__(self, fail_first: bool) -> None:
+            self.calls, self.fail_first = [], fail_first
+            self.reset = self
+
+        def remote(self, episode, task):
+            self.calls.append(episode)
+            return self._answer(len(self.calls))
+
+        async def _answer(self, n):
+            await asyncio.sleep(0.05)
+            if self.fail_first and n == 1:
+                raise LostEpisode("restarted")
+            return f"first scene of {n}"
+
+    task = Task(env="toy", id="flag-02")
+
+    async def start_together(worker, n=6):
+        initial = FirstObservations(8)
+        envs = [WorkerEnv(StepBatcher(worker, 5.0), f"e{i}", initial) for i in range(n)]
+        return envs, await asyncio.gather(*(env.reset(task) for env in envs), return_exceptions=True)
+
+    worker = Worker(fail_first=False)
+    envs, seen = asyncio.run(start_together(worker))
+    assert worker.calls == ["e0"] and seen == ["first scene of 1"] * 6
+    assert envs[0].held and envs[0].pending_reset is None  # the worker holds the asker's instance
+    assert all(e.pending_reset == task and not e.held for e in envs[1:])  # the others reset with their step
+
+    worker = Worker(fail_first=True)
+    envs, seen = asyncio.run(start_together(worker))
+    assert isinstance(seen[0], WorkerLost)  # the asker's attempt is re-run by the scheduler
+    assert worker.calls == ["e0", "e1"] and seen[1:] == ["first scene of 2"] * 5
