@@ -67,6 +67,7 @@ RENDERERS = {
 # the slow simulators).
 SIZES = {"iphyre": ((5, 40), (2, 40)), "phyre": ((3, 100), (1, 30)), "pooltool": ((1, 40), (1, 12))}
 SAMPLE_S = 0.25
+CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 
 
 class StageClock:
@@ -206,7 +207,7 @@ def pipeline(config: RunConfig, out: str) -> tuple[int, dict[str, float], dict[s
                 t = p.cpu_times()
                 cpu[p.pid] = (t.user + t.system, t.system)
                 if roles[p.pid] == "env workers":
-                    threads[p.pid] = {th.id: th.user_time + th.system_time for th in p.threads()}
+                    threads[p.pid] = thread_cpu(p.pid) or threads.get(p.pid, {})
             except psutil.Error:
                 continue
         for pid, (c, k) in cpu.items():
@@ -237,6 +238,23 @@ def pipeline(config: RunConfig, out: str) -> tuple[int, dict[str, float], dict[s
         before = first[3].get(pid, {})
         env_thread += max((c - before.get(tid, 0.0) for tid, c in by_thread.items()), default=0.0)
     return last[0] - first[0], dict(per_role), dict(kernel), last[2] - first[2], env_thread
+
+
+def thread_cpu(pid: int) -> dict[int, float]:
+    """CPU seconds of each thread of a process, from /proc (a thread that ends meanwhile is left out)."""
+    out: dict[int, float] = {}
+    try:
+        tids = os.listdir(f"/proc/{pid}/task")
+    except OSError:  # the process has ended
+        return out
+    for tid in tids:
+        try:
+            with open(f"/proc/{pid}/task/{tid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        out[int(tid)] = (int(fields[11]) + int(fields[12])) / CLOCK_TICKS  # utime, stime
+    return out
 
 
 def files_in(path: str) -> int:
