@@ -7,7 +7,8 @@
   files; on a starved machine the dashboard agent takes longer than that to import its
   modules, and the raylet aborts ("The current node timed out during startup").
 
-So every port Ray's agents open is chosen here, free, before the start (`ray.init` takes no
+So every port Ray's agents open is chosen here, free (and where the kernel hands out none of its
+own), before the start (`ray.init` takes no
 such options; `_ray_params` hands them to the RayParams it builds), and the dashboard
 agent's HTTP port, which the raylet only reads to report it, is written to the session's
 port file as soon as the session exists (the agent writes the same number once it is up).
@@ -23,6 +24,7 @@ import contextlib
 import glob
 import logging
 import os
+import random
 import re
 import socket
 import threading
@@ -39,6 +41,15 @@ WORKER_REGISTER_TIMEOUT_S = 300  # a worker process's start, imports included (R
 # answer costs a put, a get and a release in the raylet and both processes (measured with
 # benchmarks/cpu_per_attempt.py: Ray's own processes 0.4 -> 0.2 ms per I-PHYRE attempt).
 INLINE_RESULT_MAX = 4 * 1024 * 1024
+# Where the agents' ports are chosen (before the start, so they are free then): below the
+# kernel's ephemeral range (Linux: from 32768), which binding port 0 and every outgoing
+# connection draw from. Ray's own processes (each worker's gRPC server, their connections)
+# take ports from it while its agents still import, and one did take the dashboard agent's
+# port chosen there (the agent failed to bind, and the raylet, which shares its fate, died
+# two seconds into the run). From 20000: above the worker ports of a `ray start` node
+# (10002-19999) that may share the machine.
+AGENT_PORTS = (20000, 32768)
+EPHEMERAL_RANGE = "/proc/sys/net/ipv4/ip_local_port_range"
 # What a failed start's logs say, most telling first.
 CAUSES = [
     (re.compile(r"address already in use", re.I), "a port it needs is in use"),
@@ -52,7 +63,42 @@ class RayStartFailed(RuntimeError):
 
 
 def free_ports(host: str, n: int) -> list[int]:
-    """`n` distinct ports free on `host` and on 127.0.0.1 (Ray's agents listen on both)."""
+    """`n` distinct ports free on every address (Ray's agents listen on all), chosen at random
+    in `AGENT_PORTS` below the kernel's ephemeral range; from that range (a port the kernel
+    hands out) only where the machine leaves no room below it."""
+    low, high = AGENT_PORTS[0], min(AGENT_PORTS[1], _ephemeral_start())
+    if high - low < 1000:
+        return _kernel_ports(host, n)
+    pick = random.Random()  # a port, not an outcome: nothing to seed
+    ports: list[int] = []
+    for _ in range(100 * n):
+        port = pick.randrange(low, high)
+        if port not in ports and _bindable(port, host):
+            ports.append(port)
+            if len(ports) == n:
+                return ports
+    return _kernel_ports(host, n)
+
+
+def _ephemeral_start() -> int:
+    try:
+        return int(Path(EPHEMERAL_RANGE).read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return AGENT_PORTS[1]
+
+
+def _bindable(port: int, host: str) -> bool:
+    for address in ("", host, "127.0.0.1"):  # every address ("": all of them), then the two Ray names
+        try:
+            with socket.socket() as s:
+                s.bind((address, port))
+        except OSError:
+            return False
+    return True
+
+
+def _kernel_ports(host: str, n: int) -> list[int]:
+    """`n` distinct ports the kernel hands out as free on `host` and on 127.0.0.1."""
     ports: list[int] = []
     held = []
     try:
@@ -62,8 +108,9 @@ def free_ports(host: str, n: int) -> list[int]:
             held.append(s)
             port = s.getsockname()[1]
             try:
-                with socket.socket() as t:
-                    t.bind(("127.0.0.1", port))
+                if host != "127.0.0.1":
+                    with socket.socket() as t:
+                        t.bind(("127.0.0.1", port))
             except OSError:
                 continue
             ports.append(port)

@@ -36,11 +36,17 @@ log = logging.getLogger(__name__)
 WORKER_LOST = (LostEpisode, ActorDiedError, ActorUnavailableError, RayActorError)
 # Failures no retry can mend, that end the whole run at once (raised by `Scheduler.run`).
 FATAL = (RunWriteError, AccessDenied)
-# Decisions per environment worker call, and calls on their way per worker: the worker
-# runs one call while the next waits in its queue, so it never idles for a round trip;
-# a bounded call keeps the worker's results flowing back (measured: benchmarks/throughput.py).
-BATCH_MAX = 8
+# Calls on their way per environment worker: the worker runs one call while the next waits
+# in its queue, so it never idles for a round trip. A call carries as many of the decisions
+# waiting for that worker as take it about `CALL_S` at the pace of its last call, at most
+# `BATCH_MAX` (the first call: one). A Ray call costs the driver and the worker about a
+# millisecond each, so cheap decisions go many a call (PHYRE, ~5 ms each: 32; measured with
+# benchmarks/cpu_per_attempt.py: ~0.4 ms less CPU per attempt than 8 a call), while a slow
+# environment's (Pooltool, ~0.7 s a shot: 1) come back one by one and a run's last calls on
+# the two workers end close together.
 CALLS_IN_FLIGHT = 2
+CALL_S = 0.25
+BATCH_MAX = 32
 
 
 class WorkerLost(RuntimeError):
@@ -62,8 +68,7 @@ class BudgetExhausted(RuntimeError):
 class StepBatcher:
     """The decisions bound for one environment worker, sent as few Ray calls as keep it busy:
     requests made while `CALLS_IN_FLIGHT` calls are already on their way wait, and go out
-    together (at most `BATCH_MAX` a call) when one comes back. A Ray call costs the driver
-    and the worker about a millisecond each way; an I-PHYRE decision, a dozen.
+    together (as many as the worker's pace fits in `CALL_S`) when one comes back.
 
     Errors stay per episode: the worker answers each request with its result or its own
     error; a call that fails as a whole (the worker died, no answer within `timeout_s`)
@@ -74,6 +79,8 @@ class StepBatcher:
         self.waiting: list[tuple[tuple[str, Action, Task | None], asyncio.Future]] = []
         self.calls = 0  # calls on their way
         self.in_flight: set[asyncio.Task] = set()
+        self.size = 1  # decisions the next call takes, at most
+        self.last_done = 0.0  # when the last call came back (time.monotonic)
 
     def step(self, episode: str, action: Action, reset: Task | None) -> asyncio.Future:
         future = asyncio.get_running_loop().create_future()
@@ -85,16 +92,18 @@ class StepBatcher:
     def _send(self) -> None:
         self.waiting = [w for w in self.waiting if not w[1].done()]  # their attempts were cancelled meanwhile
         while self.waiting and self.calls < CALLS_IN_FLIGHT:
-            batch, self.waiting = self.waiting[:BATCH_MAX], self.waiting[BATCH_MAX:]
+            batch, self.waiting = self.waiting[:self.size], self.waiting[self.size:]
             self.calls += 1
             call = asyncio.ensure_future(self._call(batch))
             self.in_flight.add(call)  # a task the loop holds only weakly
             call.add_done_callback(self.in_flight.discard)
 
     async def _call(self, batch: list[tuple[tuple[str, Action, Task | None], asyncio.Future]]) -> None:
+        sent = time.monotonic()
         ref = self.worker.step_batch.remote([request for request, _ in batch])
         try:
             outcomes = await asyncio.wait_for(ref, timeout=self.timeout_s)
+            self._paced(sent, len(batch))
         except WORKER_LOST as e:
             outcomes = [WorkerLost(type(e).__name__) for _ in batch]
         except asyncio.TimeoutError:
@@ -114,6 +123,15 @@ class StepBatcher:
                 future.set_exception(outcome)
             else:
                 future.set_result(outcome)
+
+    def _paced(self, sent: float, decisions: int) -> None:
+        """Size the next call from this one's pace. A call sent while the previous one was
+        still out waited in the worker's queue and started when that one ended: its time on
+        the worker is from then (its round trip would count the wait)."""
+        done = time.monotonic()
+        per_decision = max(done - max(sent, self.last_done), 1e-6) / decisions
+        self.last_done = done
+        self.size = max(1, min(BATCH_MAX, int(CALL_S / per_decision)))
 
 
 class FirstObservations:

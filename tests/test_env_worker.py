@@ -4,6 +4,7 @@ its own outcome."""
 from __future__ import annotations
 
 import asyncio
+import statistics
 
 from conftest import RAY_TIMEOUT_S
 
@@ -27,6 +28,7 @@ def test_decisions_of_one_loop_turn_are_one_call_and_each_keeps_its_own_outcome(
 
     async def steps(requests):
         batcher = StepBatcher(worker, RAY_TIMEOUT_S)
+        batcher.size = 8  # a worker whose pace is known (a first call takes one decision)
         return await asyncio.gather(*(batcher.step(*r) for r in requests), return_exceptions=True)
 
     try:
@@ -42,6 +44,42 @@ def test_decisions_of_one_loop_turn_are_one_call_and_each_keeps_its_own_outcome(
         assert stats["calls"] == 2 and stats["steps"] == 4, stats  # 5 decisions in 2 calls; the ghost never stepped
     finally:
         ray.kill(worker)
+
+
+def test_a_call_takes_as_many_decisions_as_the_worker_does_in_call_s(monkeypatch):
+    """The first call takes one decision; each later call as many as the worker got through in
+    `CALL_S` at its last call's pace, counted from when the worker started it (a call that
+    waited in the worker's queue behind the previous one is not timed from its sending)."""
+    from deepphy import scheduler
+    from deepphy.scheduler import StepBatcher
+
+    monkeypatch.setattr(scheduler, "CALL_S", 0.1)
+
+    class Worker:  # one call at a time, like an environment worker's queue
+        def __init__(self, per_decision_s: float) -> None:
+            self.per_decision_s, self.sizes, self.step_batch = per_decision_s, [], self
+            self.busy = asyncio.Lock()
+
+        def remote(self, requests):
+            self.sizes.append(len(requests))
+            return self._run(requests)
+
+        async def _run(self, requests):
+            async with self.busy:
+                await asyncio.sleep(self.per_decision_s * len(requests))
+            return [f"result of {episode}" for episode, _, _ in requests]
+
+    async def decide(worker, n):
+        batcher = StepBatcher(worker, 10.0)
+        return await asyncio.gather(*(batcher.step(f"e{i}", None, None) for i in range(n)))
+
+    quick = Worker(per_decision_s=0.01)  # 10 a call; timed from its sending, a queued call would say ~5
+    assert asyncio.run(decide(quick, 60)) == [f"result of e{i}" for i in range(60)]
+    assert quick.sizes[:2] == [1, 1] and sum(quick.sizes) == 60, quick.sizes
+    assert 7 <= statistics.median(quick.sizes[2:-1]) <= 10, quick.sizes
+    slow = Worker(per_decision_s=0.15)  # slower than CALL_S: one a call
+    asyncio.run(decide(slow, 5))
+    assert slow.sizes == [1] * 5, slow.sizes
 
 
 def test_a_batch_of_answers_comes_back_inside_the_reply_not_through_the_object_store(ray_cluster):

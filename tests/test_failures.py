@@ -294,6 +294,30 @@ def test_a_local_ray_that_does_not_start_is_one_line_with_its_logs(tmp_path):
     assert not _session_processes(Path(logs).parent)
 
 
+def test_the_agents_ports_are_free_and_outside_the_range_the_kernel_hands_out(tmp_path, monkeypatch):
+    """Ray's processes bind port 0 and connect out while its agents still import: a port
+    chosen in the kernel's ephemeral range was taken before the dashboard agent bound it (the
+    raylet died with the agent). The agents' ports are chosen below that range, free on
+    every address; where the machine leaves no room below it, from the kernel as before."""
+    import socket
+
+    from deepphy import local_ray
+
+    ephemeral = int(Path(local_ray.EPHEMERAL_RANGE).read_text().split()[0])
+    ports = local_ray.free_ports("127.0.0.1", 4)
+    assert len(set(ports)) == 4
+    assert all(local_ray.AGENT_PORTS[0] <= p < min(local_ray.AGENT_PORTS[1], ephemeral) for p in ports), ports
+    assert all(local_ray._bindable(p, "127.0.0.1") for p in ports)
+    with socket.socket() as held:
+        held.bind(("127.0.0.1", ports[0]))
+        assert not local_ray._bindable(ports[0], "127.0.0.1")  # in use on one address: not free
+    squeezed = tmp_path / "ip_local_port_range"
+    squeezed.write_text(f"{local_ray.AGENT_PORTS[0] + 500}\t60999\n")
+    monkeypatch.setattr(local_ray, "EPHEMERAL_RANGE", str(squeezed))
+    fallback = local_ray.free_ports("127.0.0.1", 4)
+    assert len(set(fallback)) == 4 and all(local_ray._bindable(p, "127.0.0.1") for p in fallback)
+
+
 def _session_processes(session: Path) -> list[str]:
     found = []
     for p in psutil.process_iter():
