@@ -450,6 +450,8 @@ async def _drive(scheduler, existing, env_workers, metrics, metrics_ready, runti
     attempt by ~0.3 s on the 2-core machine, so nothing waits for it. Should it not start
     within the step timeout, the run stops (the attempts in flight are recorded first) with
     one line, as for the workers."""
+    from ray.exceptions import RayActorError
+
     phase = [status.phase]
     metrics_up = asyncio.ensure_future(_metrics_started(metrics_ready, scheduler, runtime))
 
@@ -470,6 +472,11 @@ async def _drive(scheduler, existing, env_workers, metrics, metrics_ready, runti
             raise ClusterUnavailable(f"the environment workers did not start within {runtime.step_timeout_s:g} s "
                                      "(an overloaded machine, or no room on the cluster for them); run the same "
                                      "command again to resume") from None
+        except RayActorError as e:
+            if e.actor_init_failed:  # the environment cannot be built in a worker: not the cluster's doing
+                raise
+            raise ClusterUnavailable(f"the environment workers died while starting ({_why_died(e)}); run the same "
+                                     "command again to resume") from None
         enter("running")
         await scheduler.run(existing)
         await metrics_up  # a run shorter than the metrics actor's start waits for it here
@@ -484,6 +491,24 @@ async def _drive(scheduler, existing, env_workers, metrics, metrics_ready, runti
             except asyncio.CancelledError:
                 pass
             await _print_snapshot(scheduler, metrics, phase[0], stream, final=True)
+
+
+def _why_died(error: BaseException) -> str:
+    """Why Ray says workers died: their node's death where their node died (a local instance's
+    raylet dies with a failed agent), else the error's own words."""
+    import ray
+
+    lines = str(error).splitlines() or [type(error).__name__]
+    ips = [line.split(":", 1)[1].strip() for line in lines if line.startswith("\tip:")]
+    try:
+        dead = [n.get("DeathReasonMessage") or "no reason given" for n in ray.nodes()
+                if not n.get("Alive", True) and n.get("NodeManagerAddress") in ips]
+    except Exception:  # noqa: BLE001 - Ray's control process may be gone too
+        dead = []
+    if dead:
+        return f"their node died: {dead[-1]}"
+    said = [line.strip() for line in lines[1:] if line.strip() and not line.startswith("\t")]  # not the actor's ids
+    return " ".join([lines[0].strip(), *said[:1]])
 
 
 async def _metrics_started(ready, scheduler, runtime: RuntimeOptions) -> None:

@@ -183,6 +183,32 @@ def test_attempts_do_not_wait_for_the_metrics_actor_but_it_must_start(baseline, 
     assert views(tmp_path) == views(baseline)
 
 
+def test_workers_that_die_while_starting_stop_the_run_with_one_line_and_it_resumes(baseline, tmp_path, monkeypatch):
+    """Workers lost before their first call (here killed; seen: a local Ray's raylet dying
+    with its dashboard agent) stop the run with a ClusterUnavailable that says so (the CLI's
+    one line), not an unexpected error; the same command then finishes the run."""
+    import ray
+
+    import deepphy.runner as runner
+    from deepphy.runner import ClusterUnavailable
+
+    made = runner.make_env_workers
+
+    def dead_on_arrival(*args, **kwargs):
+        workers = made(*args, **kwargs)
+        for worker in workers:
+            ray.kill(worker, no_restart=True)
+        return workers
+
+    monkeypatch.setattr(runner, "make_env_workers", dead_on_arrival)
+    with pytest.raises(ClusterUnavailable, match=r"the environment workers died while starting \(.+\); run the same"):
+        evaluate(CONFIG, tmp_path, RUNTIME)
+    assert not read_records(tmp_path)
+    monkeypatch.undo()
+    assert evaluate(CONFIG, tmp_path, RUNTIME).complete
+    assert views(tmp_path) == views(baseline)
+
+
 def test_wm_format_records_predictions(ray_cluster, tmp_path):
     config = RunConfig(**{**CONFIG.model_dump(), "format": "wm", "runs": 1, "tasks": TASKS[:2]})
     evaluate(config, tmp_path, RUNTIME)
