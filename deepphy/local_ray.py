@@ -7,11 +7,11 @@
   files; on a starved machine the dashboard agent takes longer than that to import its
   modules, and the raylet aborts ("The current node timed out during startup").
 
-So every port Ray's agents open is chosen here, free (and where the kernel hands out none of its
-own), before the start (`ray.init` takes no
-such options; `_ray_params` hands them to the RayParams it builds), and the dashboard
-agent's HTTP port, which the raylet only reads to report it, is written to the session's
-port file as soon as the session exists (the agent writes the same number once it is up).
+So every port Ray's agents open is chosen here, free and outside the range the kernel hands
+out, before the start (`ray.init` takes no such options; `_ray_params` hands them to the
+RayParams it builds), and the dashboard agent's HTTP port, which the raylet only reads to
+report it, is written to the session's port file as soon as the session exists (the agent
+writes the same number once it is up).
 A start that still fails is retried with fresh ports; its processes are stopped first.
 
 The autoscaler's monitor is not started: a local instance has a fixed size, and on a
