@@ -658,7 +658,7 @@ def test_same_seed_same_mock_records():
 def test_the_calibrations_baseline_is_what_mock_plays():
     # calibrate.reference_episode replays MOCK's own draws: same actions, same outcome as the harness.
     # Runs 0-2 of these levels hold 3-star wins (b1_l01), a 1-star win beside losses (b1_l22), a
-    # 0-star win (b2_l11) and losses only (b5_l01).
+    # 2-star win beside losses (b2_l11) and losses only (b5_l02).
     import asyncio
 
     from deepphy.agents import MockModel
@@ -669,7 +669,7 @@ def test_the_calibrations_baseline_is_what_mock_plays():
     spec = get_spec("cuttherope")
     cls = spec.load()
     config = RunConfig(env="cuttherope", model="mock", seed=0)
-    for task in [t for t in cls.tasks(cls.Options()) if t.id in ("b1_l01", "b1_l22", "b2_l11", "b5_l01")]:
+    for task in [t for t in cls.tasks(cls.Options()) if t.id in ("b1_l01", "b1_l22", "b2_l11", "b5_l02")]:
         for run in range(3):
             rec = asyncio.run(run_attempt(spec, spec.load_prompt(), config, task, run, 1, [], LocalEnv(cls()),
                                           MockModel(), MemoryArtifacts()))

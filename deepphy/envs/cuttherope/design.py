@@ -320,10 +320,11 @@ BOX2: list[Level] = [
          candies=[(220, 260)], ropes=[rope(100, 120, spider=0.0), rope(360, 120)], om_nom=(420, 480),
          stars=[(300, 300), (380, 300), (430, 340)]),
     make("b2_l11", "Before the spider, after the swing",
-         "A spider comes down one of the two short ropes: cut both before it arrives, and the long slack rope catches "
-         "the candy; let go of it over Om Nom.",
-         candies=[(240, 240)], ropes=[rope(160, 140, spider=0.0), rope(320, 140), rope(60, 100, slack=60)],
-         om_nom=(90, 560), stars=[(240, 330), (170, 420), (110, 470)]),
+         "A spider comes down one of the two short ropes: cut both before it arrives, and the slack rope catches the "
+         "candy and swings it out to the right. Let go of it on the swing back, and it flies left to Om Nom; let go "
+         "on the way out and it falls far to his right.",
+         candies=[(240, 240)], ropes=[rope(225, 140, spider=0.0), rope(400, 190), rope(320, 70, slack=40)],
+         om_nom=(150, 600), stars=[(410, 280), (217, 330), (173, 442)]),
     make("b2_l12", "Escape upward",
          "A spider is coming down the rope: cut it, and the bubble under the candy carries it up out of reach, "
          "to Om Nom.",
@@ -470,18 +471,20 @@ BOX4: list[Level] = [
     make("b4_l04", "Two pairs",
          "Two pairs of hats, told apart by their colours. Drop the candy straight into the first (both ropes in one "
          "swipe): it throws the candy into the second, and the second to Om Nom.",
-         candies=[(240, 120)], ropes=[rope(160, 40), rope(320, 40)], hats=[hats((240, 330), 90, (80, 200), 0), hats((300, 235), 180, (420, 120), 270)],
-         om_nom=(420, 600), stars=[(240, 230), (200, 212), (420, 330)]),
+         candies=[(240, 120)], ropes=[rope(160, 40), rope(320, 40)],
+         hats=[hats((240, 330), 90, (80, 200), 0), hats((360, 300), 180, (260, 450), 270)],
+         om_nom=(260, 620), stars=[(240, 230), (300, 255), (260, 530)]),
     make("b4_l05", "Up into the hat",
          "A bubble carries the candy up into a hat that opens downward; its pair lets the bubble out sideways. Pop "
          "it then, over Om Nom.",
          candies=[(120, 520)], ropes=[rope(120, 400)], bubbles=[{"pos": (120, 600)}],
          hats=[hats((120, 180), 270, (340, 160), 0)], om_nom=(440, 620), stars=[(120, 350), (120, 250), (440, 400)]),
     make("b4_l06", "Puff into the hat",
-         "The candy swings; puff it at the bottom of the swing so that it flies into the hat; its pair sends it to Om "
-         "Nom.",
+         "The candy swings; puff it at the bottom of the swing so that it flies into the hat; its pair drops it to Om "
+         "Nom. Cut loose and puffed, the candy falls on the spikes.",
          candies=[(120, 300)], ropes=[rope(120, 150)], cushions=[cushion(30, 300, 0)],
-         hats=[hats((360, 330), 180, (240, 120), 270)], om_nom=(240, 620), stars=[(230, 300), (320, 320), (240, 400)]),
+         hats=[hats((360, 330), 180, (240, 120), 270)], spikes=[spikes((100, 440), (205, 440))], om_nom=(240, 620),
+         stars=[(230, 300), (320, 320), (240, 400)]),
     make("b4_l07", "Around the spikes",
          "Spikes roof Om Nom over; the hat's pair opens under them. Drop the candy straight into the hat: cut both "
          "ropes in one swipe, or the other one swings the candy away.",
@@ -537,11 +540,12 @@ BOX4: list[Level] = [
 
 BOX5: list[Level] = [
     make("b5_l01", "Two halves",
-         "Two candy halves, each on its own rope. Cut the left half's short rope: it swings into the right half and "
-         "they join; then let the whole candy go when its swing will carry it to Om Nom (a half alone is no meal).",
-         candies=[(140, 250), (300, 330)],
-         ropes=[rope(140, 150, candy=0), rope(300, 140, candy=0, slack=0), rope(300, 150, candy=1)],
-         om_nom=(300, 620), stars=[(220, 290), (300, 400), (300, 500)]),
+         "Two candy halves hang one above the other. Drop the upper one: it falls onto the lower one and they join "
+         "into a whole candy; then drop that to Om Nom. Drop the lower one first and it reaches him alone: a half is "
+         "no meal.",
+         candies=[(240, 370), (240, 200)],
+         ropes=[rope(240, 290, candy=0), rope(240, 100, candy=1)],
+         om_nom=(240, 620), stars=[(240, 250), (240, 460), (240, 540)]),
     make("b5_l02", "Meet in the middle",
          "Both halves hang on two ropes each. Cut each half's outer rope (one swipe) and they swing together "
          "beneath the middle, join, and hang over Om Nom: then let them drop.",
