@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import time
@@ -675,6 +676,39 @@ def test_the_calibrations_baseline_is_what_mock_plays():
                                           MockModel(), MemoryArtifacts()))
             won, stars = reference_episode(load_level(task.id), 0, run)
             assert (rec.success, rec.stars if rec.success else 0) == (won, stars), (task.id, run)
+
+
+def test_the_exact_random_rate_plays_out_every_order_random_can_draw():
+    # One rope: one sequence, always won. Three ropes (b2_l11): six orders, one wins with two
+    # stars. Two ropes cut one after the other (b4_l04): neither order wins. The 60 sampled
+    # episodes scatter around the exact rate (b5_l01: 1/2 exactly, 34 of 60 sampled).
+    from deepphy.envs.cuttherope.calibrate import random_orders, reference_baseline
+
+    assert random_orders(load_level("b1_l01")) == {"sequences": 1, "rate": 1.0, "stars": {3: 1.0}}
+    b2_l11 = random_orders(load_level("b2_l11"))
+    assert b2_l11["sequences"] == 6 and b2_l11["rate"] == pytest.approx(1 / 6)
+    assert b2_l11["stars"] == {2: pytest.approx(1 / 6)}
+    assert random_orders(load_level("b4_l04")) == {"sequences": 2, "rate": 0.0, "stars": {}}
+    b5_l01 = load_level("b5_l01")
+    assert random_orders(b5_l01)["rate"] == 0.5
+    sampled = reference_baseline(b5_l01)
+    assert abs(sampled["rate"] - 0.5) < 3 * (0.25 / sampled["episodes"]) ** 0.5
+    assert random_orders(load_level("b2_l11"), limit=5) is None  # past the limit: not computed
+
+
+def test_the_calibration_report_gives_the_exact_rate_beside_the_sampled_one(tmp_path, capsys):
+    from deepphy.cli import main
+
+    out = tmp_path / "calibration.json"
+    assert main(["solve", "--env", "cuttherope", "calibrate", "--levels", "b2_l11,b5_l01", "--no-needs",
+                 "--json", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert re.search(r"^b2_l11 +\d+ +20% +17% ", printed, re.M) and re.search(r"^b5_l01 +\d+ +57% +50% ", printed, re.M)
+    data = json.loads(out.read_text())
+    assert [r["baseline_exact"] for r in data["levels"]] == [
+        {"sequences": 6, "rate": pytest.approx(1 / 6), "stars": {"2": pytest.approx(1 / 6)}},
+        {"sequences": 2, "rate": 0.5, "stars": {"3": 0.5}}]
+    assert data["all"]["baseline_exact"] == pytest.approx((1 / 6 + 0.5) / 2)
 
 
 def test_needs_tells_a_needed_element_from_decoration():

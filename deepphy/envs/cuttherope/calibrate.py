@@ -4,6 +4,8 @@ cuttherope calibrate`) and of the design checks (`... make`).
 - `reference_baseline`: MOCK's reference random agent, episode by episode, with the very
   draws `deepphy run --model mock` makes (seeded by seed, environment, task, run, attempt
   and step: deepphy/agents.py), played by the environment's rules (`env.Attempt`);
+- `random_orders`: the exact probability that the reference agent wins, which those
+  episodes sample: every sequence of choices it can draw, played out;
 - `grid_share`: how many plans of a fixed timing grid win (the stored plan's number of
   element actions, each after a pause from GRID_PAUSES);
 - `robustness` (oracle.py): the stored plan with every sleep moved by +-0.1 s;
@@ -39,6 +41,8 @@ GRID_MOVES = 3  # at most this many element actions in a grid plan
 GRID_PLANS = 400  # grid plans played per level: all of them, or a fixed seeded sample of this many
 LATER = (0.5, 1.0, 2.0, 3.0, 5.0, 8.0)  # s: how much later the obstacle test starts (or slows) the stored plan
 AT_REST_MOVE = 1.0  # px: a candy that moves less than this in the first second (nothing done) is at rest
+RANDOM_ORDERS_MAX = 5040  # sequences the exact reference-baseline rate plays out at most (7 elements' orders; the 88 levels have <= 24, 0.9 s in all)
+FAIL = CutAction(name="fail")
 
 
 # -- the reference baseline -------------------------------------------------------------------------
@@ -65,6 +69,42 @@ def reference_baseline(level: Level, seed: int = 0, episodes: int = BASELINE_EPI
     stars = [s for won, s in outcomes if won]
     return {"episodes": episodes, "wins": len(stars), "rate": len(stars) / episodes, "stars": stars,
             "wins_by_run": [won for won, _ in outcomes]}
+
+
+class _TooMany(Exception):
+    pass
+
+
+def random_orders(level: Level, limit: int = RANDOM_ORDERS_MAX) -> dict | None:
+    """The reference baseline's exact chances on `level`, which its 60 episodes sample: every
+    sequence of its choices (one per action, each uniform among those available then) played
+    out by the rules, weighted by its probability. {"sequences", "rate": the probability of a
+    win, "stars": {stars: probability of a win with them}}; None past `limit` sequences."""
+    out: dict = {"sequences": 0, "rate": 0.0, "stars": {}}
+
+    def play_out(prefix: list[CutAction], p: float) -> None:
+        attempt = Attempt(level)  # replayed from the start: a level's few seconds cost ~1.4 ms each
+        for action in prefix:
+            attempt.play(action)
+        choices = [] if attempt.done else attempt.space().reference_choices()
+        for choice in choices:
+            play_out([*prefix, choice], p / len(choices))
+        if choices:
+            return
+        if not attempt.done:
+            attempt.play(FAIL)
+        out["sequences"] += 1
+        if out["sequences"] > limit:
+            raise _TooMany
+        if attempt.world.status == "won":
+            out["rate"] += p
+            out["stars"][attempt.stars] = out["stars"].get(attempt.stars, 0.0) + p
+
+    try:
+        play_out([], 1.0)
+    except _TooMany:
+        return None
+    return out
 
 
 # -- the timing grid ---------------------------------------------------------------------------------

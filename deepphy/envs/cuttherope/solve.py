@@ -9,8 +9,9 @@
                                              [--no-needs] [--json FILE]
         What each level measures (calibrate.py): the reference baseline's win rate with
         MOCK's own draws (runs 0..episodes-1; runs 0..2 are what `deepphy run --model mock
-        --runs 3` plays) and the stars of its wins, the share of a fixed timing grid of plans
-        that win, whether the stored plan still wins with every sleep moved by +-0.1 s, the
+        --runs 3` plays) and the stars of its wins, the exact probability that it wins (every
+        sequence of its choices played out), the share of a fixed timing grid of plans that
+        win, whether the stored plan still wins with every sleep moved by +-0.1 s, the
         elements its three stars need, whether every first action wins, whether the candy
         starts at rest; a per-box summary and the targets. Tens of minutes (--no-needs:
         minutes).
@@ -48,6 +49,7 @@ from deepphy.envs.cuttherope.calibrate import (
     first_actions_all_win,
     grid_share,
     needs,
+    random_orders,
     reference_baseline,
 )
 from deepphy.envs.cuttherope.design import design, designed_ids
@@ -118,9 +120,12 @@ def calibrate_level(level: Level, episodes: int, seed: int, check_needs: bool) -
     base = reference_baseline(level, seed, episodes)
     mock = base["wins_by_run"][:MOCK_RUNS]
     grid = grid_share(level, element_actions(plan))
+    exact = random_orders(level)
     row = {
         "level": level.id, "box": level.box, "title": level.title, "idea": level.idea, "plan": plan,
         "plan_sleeps": len(sleeps_of(plan)), "baseline": base["rate"], "baseline_stars": base["stars"],
+        "baseline_exact": exact and {"sequences": exact["sequences"], "rate": exact["rate"],
+                                     "stars": {str(k): v for k, v in sorted(exact["stars"].items())}},
         "mock_wins": sum(mock), "mock_runs": len(mock), "grid": grid, "robust": robustness(level, plan),
         "first_actions_all_win": first_actions_all_win(level), "at_rest": at_rest(level),
     }
@@ -149,6 +154,8 @@ def _summary(rows: list[dict]) -> dict:
     return {
         "levels": len(rows),
         "baseline": sum(r["baseline"] for r in rows) / len(rows),
+        "baseline_exact": (None if any(r["baseline_exact"] is None for r in rows)
+                           else sum(r["baseline_exact"]["rate"] for r in rows) / len(rows)),
         "mock": sum(r["mock_wins"] for r in rows) / sum(r["mock_runs"] for r in rows),
         "baseline_stars_per_win": sum(stars) / len(stars) if stars else None,
         "grid_won": sum(r["grid"]["won"] for r in rows) / sum(r["grid"]["plans"] for r in rows),
@@ -194,21 +201,26 @@ def _stars(stars: list[int]) -> str:
 
 
 def print_calibration(data: dict) -> None:
-    print(f"{'level':7} {'acts':>4} {'base':>5} {'rnd stars':>11} {'grid won/3*':>12} {'robust':>7} {'1st':>3} "
-          f"{'rest':>4}  needs")
+    # exact: the probability that the reference agent wins (every sequence it can draw), which
+    # `base` (its 60 episodes) samples
+    print(f"{'level':7} {'acts':>4} {'base':>5} {'exact':>5} {'rnd stars':>11} {'grid won/3*':>12} {'robust':>7} "
+          f"{'1st':>3} {'rest':>4}  needs")
     for r in data["levels"]:
         g, rb = r["grid"], r["robust"]
         needs_text = " ".join(f"{k}:{v}" for k, v in r.get("needs", {}).items())
         robust = f"{rb['won']}/{rb['variants']}" if rb["variants"] else "-"
-        print(f"{r['level']:7} {element_actions(r['plan']):>4} {100 * r['baseline']:>4.0f}% {_stars(r['baseline_stars']):>11} "
+        exact = "-" if r["baseline_exact"] is None else f"{100 * r['baseline_exact']['rate']:.0f}%"
+        print(f"{r['level']:7} {element_actions(r['plan']):>4} {100 * r['baseline']:>4.0f}% {exact:>5} "
+              f"{_stars(r['baseline_stars']):>11} "
               f"{100 * g['won'] / g['plans']:>5.0f}%/{100 * g['three_stars'] / g['plans']:>4.0f}% {robust:>7} "
               f"{'yes' if r['first_actions_all_win'] else 'no':>3} {'yes' if r['at_rest'] else 'NO':>4}  {needs_text}")
     print()
-    print(f"{'box':>4} {'levels':>6} {'baseline':>8} {'mock':>6} {'rnd stars':>9} {'grid won':>8} {'grid 3*':>7} "
-          f"{'robust':>6} {'unneeded':>8}")
+    print(f"{'box':>4} {'levels':>6} {'baseline':>8} {'exact':>6} {'mock':>6} {'rnd stars':>9} {'grid won':>8} "
+          f"{'grid 3*':>7} {'robust':>6} {'unneeded':>8}")
     for name, b in [*((str(k), v) for k, v in data["boxes"].items()), ("all", data["all"])]:
         spw = "-" if b["baseline_stars_per_win"] is None else f"{b['baseline_stars_per_win']:.2f}"
-        print(f"{name:>4} {b['levels']:>6} {100 * b['baseline']:>7.1f}% {100 * b['mock']:>5.1f}% {spw:>9} "
+        exact = "-" if b["baseline_exact"] is None else f"{100 * b['baseline_exact']:.1f}%"
+        print(f"{name:>4} {b['levels']:>6} {100 * b['baseline']:>7.1f}% {exact:>6} {100 * b['mock']:>5.1f}% {spw:>9} "
               f"{100 * b['grid_won']:>7.1f}% {100 * b['grid_three_stars']:>6.1f}% {b['robust']:>6} {b['not_needed']:>8}")
     print()
     for t in data["targets"]:

@@ -228,18 +228,23 @@ class CutSpace(ActionSpace):
         return actions[int(rng.integers(len(actions)))]
 
     def reference_reply(self, rng: np.random.Generator, earlier: Sequence[str] = ()) -> str:
-        """The reference benchmark's random agent: uniform among cutting each pin and active
-        pin not used yet (one at a time), popping each bubble present, and one tap of each
-        cushion not tapped yet; fail() when nothing is left (the world then runs on and the
-        game decides); never sleep() or success()."""
-        choices = ([CutAction(name="cut_pin", ids=(i,)) for i in self.pins]
-                   + [CutAction(name="cut_active_pin", ids=(i,)) for i in self.active_pins]
-                   + [CutAction(name="pop_bubble", ids=(i,)) for i in self.bubbles]
-                   + [CutAction(name="tap_air_cushion", ids=(i,), times=1)
-                      for i in range(1, self.num_cushions + 1) if i not in self.cushions_tapped])
+        """The reference benchmark's random agent: uniform among `reference_choices`; fail()
+        when there is none (the world then runs on and the game decides); never sleep() or
+        success()."""
+        choices = self.reference_choices()
         if not choices:
             return self.format(CutAction(name="fail"))
         return self.format(choices[int(rng.integers(len(choices)))])
+
+    def reference_choices(self) -> list[CutAction]:
+        """What the reference random agent chooses among now: cutting each pin and active pin
+        not used yet (one at a time), popping each bubble present, and one tap of each cushion
+        not tapped yet."""
+        return ([CutAction(name="cut_pin", ids=(i,)) for i in self.pins]
+                + [CutAction(name="cut_active_pin", ids=(i,)) for i in self.active_pins]
+                + [CutAction(name="pop_bubble", ids=(i,)) for i in self.bubbles]
+                + [CutAction(name="tap_air_cushion", ids=(i,), times=1)
+                   for i in range(1, self.num_cushions + 1) if i not in self.cushions_tapped])
 
     # -- format ----------------------------------------------------------------------------
 
