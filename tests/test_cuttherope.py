@@ -700,15 +700,20 @@ def test_the_calibration_report_gives_the_exact_rate_beside_the_sampled_one(tmp_
     from deepphy.cli import main
 
     out = tmp_path / "calibration.json"
-    assert main(["solve", "--env", "cuttherope", "calibrate", "--levels", "b2_l11,b5_l01", "--no-needs",
+    assert main(["solve", "--env", "cuttherope", "calibrate", "--levels", "b2_l11,b3_l03,b5_l01", "--no-needs",
                  "--json", str(out)]) == 0
     printed = capsys.readouterr().out
     assert re.search(r"^b2_l11 +\d+ +20% +17% ", printed, re.M) and re.search(r"^b5_l01 +\d+ +57% +50% ", printed, re.M)
     data = json.loads(out.read_text())
     assert [r["baseline_exact"] for r in data["levels"]] == [
         {"sequences": 6, "rate": pytest.approx(1 / 6), "stars": {"2": pytest.approx(1 / 6)}},
+        {"sequences": 2, "rate": 0.5, "stars": {"3": 0.5}},
         {"sequences": 2, "rate": 0.5, "stars": {"3": 0.5}}]
-    assert data["all"]["baseline_exact"] == pytest.approx((1 / 6 + 0.5) / 2)
+    assert data["all"]["baseline_exact"] == pytest.approx((1 / 6 + 0.5 + 0.5) / 3)
+    # won half the time by random: b3_l03 fails the target; b5_l01, box 5's opener, may
+    lucky = [t for t in data["targets"] if "a third of the time" in t["target"]]
+    assert lucky == [{"target": lucky[0]["target"], "met": False, "figure": "b3_l03 50 %"}]
+    assert "[NOT MET] no level but a box's opener won by the reference baseline a third" in printed
 
 
 def test_needs_tells_a_needed_element_from_decoration():
