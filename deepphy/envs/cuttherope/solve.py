@@ -297,9 +297,10 @@ def make_level(level_id: str, nodes: int, check_needs: bool, beam: int = BEAM) -
         texts = found.best.texts
         check = replay(level, texts)
     made = level.model_copy(update={"solution": Solution(actions=texts, stars=check["stars"], best_stars=3)})
-    base = reference_baseline(made)
+    base, exact = reference_baseline(made), random_orders(made)
     row.update(plan=texts, stars=check["stars"], robust=robustness(made, texts), baseline=base["rate"],
-               baseline_stars=base["stars"], first_actions_all_win=first_actions_all_win(made))
+               baseline_exact=exact and exact["rate"], baseline_stars=base["stars"],
+               first_actions_all_win=first_actions_all_win(made))
     if check_needs:
         row["needs"] = needs(made, nodes)
     return {**row, "made": made}
@@ -317,8 +318,9 @@ def make(ids: list[str], nodes: int, write: bool, check_needs: bool, sheets: Pat
             line += f"NO 3-STAR PLAN (best {out.get('found_stars')} stars: {out.get('found')})"
         else:
             r = out["robust"]
+            exact = "-" if out["baseline_exact"] is None else f"{100 * out['baseline_exact']:.0f}%"
             line += (f"{out['plan']} | robust {r['won']}/{r['variants']} (3* {r['three_stars']}) | "
-                     f"baseline {100 * out['baseline']:.0f}% stars {_stars(out['baseline_stars'])} | "
+                     f"baseline {100 * out['baseline']:.0f}% (exact {exact}) stars {_stars(out['baseline_stars'])} | "
                      f"any-first-wins {out['first_actions_all_win']}")
             if "needs" in out:
                 line += " | needs " + " ".join(f"{k}:{v}" for k, v in out["needs"].items())
