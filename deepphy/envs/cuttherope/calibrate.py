@@ -41,7 +41,9 @@ GRID_MOVES = 3  # at most this many element actions in a grid plan
 GRID_PLANS = 400  # grid plans played per level: all of them, or a fixed seeded sample of this many
 LATER = (0.5, 1.0, 2.0, 3.0, 5.0, 8.0)  # s: how much later the obstacle test starts (or slows) the stored plan
 AT_REST_MOVE = 1.0  # px: a candy that moves less than this in the first second (nothing done) is at rest
-RANDOM_ORDERS_MAX = 5040  # sequences the exact reference-baseline rate plays out at most (7 elements' orders; the 88 levels have <= 24, 0.9 s in all)
+# Sequences the exact reference-baseline rate plays out at most: 7 elements' orders (the 88
+# levels have at most 24, 0.9 s for all of them).
+RANDOM_ORDERS_MAX = 5040
 FAIL = CutAction(name="fail")
 
 
@@ -83,7 +85,7 @@ def random_orders(level: Level, limit: int = RANDOM_ORDERS_MAX) -> dict | None:
     out: dict = {"sequences": 0, "rate": 0.0, "stars": {}}
 
     def play_out(prefix: list[CutAction], p: float) -> None:
-        attempt = Attempt(level)  # replayed from the start: a level's few seconds cost ~1.4 ms each
+        attempt = Attempt(level)  # replayed from the start: ~1.4 ms of physics per simulated second
         for action in prefix:
             attempt.play(action)
         choices = [] if attempt.done else attempt.space().reference_choices()

@@ -70,7 +70,7 @@ from deepphy.envs.cuttherope.oracle import (
 MOCK_RUNS = 3  # the runs of `deepphy run --model mock --runs 3 --seed 0`, the README's baseline row
 BASELINE_TARGET = (0.06, 0.16)  # the target for the reference baseline over all levels (MOCK_RUNS runs)
 FIRST_WINS_MAX = 3  # at most this many levels (the first tutorials) where every first action wins
-RANDOM_WINS_MAX = 1 / 3  # DEVELOPERS.md: a level a random agent wins a third of the time measures luck (box openers aside)
+RANDOM_WINS_MAX = 1 / 3  # a level random wins a third of the time measures luck (DEVELOPERS.md); openers aside
 
 
 # -- report -------------------------------------------------------------------------------------------
