@@ -658,7 +658,7 @@ def test_same_seed_same_mock_records():
 
 def test_the_calibrations_baseline_is_what_mock_plays():
     # calibrate.reference_episode replays MOCK's own draws: same actions, same outcome as the harness.
-    # Runs 0-2 of these levels hold 3-star wins (b1_l01), a 1-star win beside losses (b1_l22), a
+    # Runs 0-2 of these levels hold 3-star wins (b1_l01), a 1-star win beside losses (b2_l01), a
     # 2-star win beside losses (b2_l11) and losses only (b5_l02).
     import asyncio
 
@@ -670,7 +670,7 @@ def test_the_calibrations_baseline_is_what_mock_plays():
     spec = get_spec("cuttherope")
     cls = spec.load()
     config = RunConfig(env="cuttherope", model="mock", seed=0)
-    for task in [t for t in cls.tasks(cls.Options()) if t.id in ("b1_l01", "b1_l22", "b2_l11", "b5_l02")]:
+    for task in [t for t in cls.tasks(cls.Options()) if t.id in ("b1_l01", "b2_l01", "b2_l11", "b5_l02")]:
         for run in range(3):
             rec = asyncio.run(run_attempt(spec, spec.load_prompt(), config, task, run, 1, [], LocalEnv(cls()),
                                           MockModel(), MemoryArtifacts()))
@@ -698,22 +698,29 @@ def test_the_exact_random_rate_plays_out_every_order_random_can_draw():
 
 def test_the_calibration_report_gives_the_exact_rate_beside_the_sampled_one(tmp_path, capsys):
     from deepphy.cli import main
+    from deepphy.envs.cuttherope.solve import _targets
 
     out = tmp_path / "calibration.json"
-    assert main(["solve", "--env", "cuttherope", "calibrate", "--levels", "b2_l11,b3_l03,b5_l01", "--no-needs",
+    assert main(["solve", "--env", "cuttherope", "calibrate", "--levels", "b2_l01,b3_l03,b5_l01", "--no-needs",
                  "--json", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert re.search(r"^b2_l11 +\d+ +20% +17% ", printed, re.M) and re.search(r"^b5_l01 +\d+ +57% +50% ", printed, re.M)
+    assert re.search(r"^b3_l03 +\d+ +\d+% +17% ", printed, re.M) and re.search(r"^b5_l01 +\d+ +57% +50% ", printed, re.M)
     data = json.loads(out.read_text())
     assert [r["baseline_exact"] for r in data["levels"]] == [
+        {"sequences": 2, "rate": 0.5, "stars": {"1": 0.5}},
         {"sequences": 6, "rate": pytest.approx(1 / 6), "stars": {"2": pytest.approx(1 / 6)}},
-        {"sequences": 2, "rate": 0.5, "stars": {"3": 0.5}},
         {"sequences": 2, "rate": 0.5, "stars": {"3": 0.5}}]
-    assert data["all"]["baseline_exact"] == pytest.approx((1 / 6 + 0.5 + 0.5) / 3)
-    # won half the time by random: b3_l03 fails the target; b5_l01, box 5's opener, may
+    assert data["all"]["baseline_exact"] == pytest.approx((0.5 + 1 / 6 + 0.5) / 3)
+    # Won half the time by random: b2_l01 and b5_l01, but both open their box (a tutorial may be
+    # gentle); b3_l03's 1/6 is under a third.
     lucky = [t for t in data["targets"] if "a third of the time" in t["target"]]
-    assert lucky == [{"target": lucky[0]["target"], "met": False, "figure": "b3_l03 50 %"}]
-    assert "[NOT MET] no level but a box's opener won by the reference baseline a third" in printed
+    assert lucky == [{"target": lucky[0]["target"], "met": True, "figure": "none"}]
+    assert "[met] no level but a box's opener won by the reference baseline a third" in printed
+    # The same half-won row as any other level of its box fails the target.
+    rows = [dict(r) for r in data["levels"]]
+    rows[2]["level"] = "b5_l02"
+    lucky = [t for t in _targets(rows, check_needs=False) if "a third of the time" in t["target"]]
+    assert lucky[0]["met"] is False and lucky[0]["figure"] == "b5_l02 50 %"
 
 
 def test_needs_tells_a_needed_element_from_decoration():

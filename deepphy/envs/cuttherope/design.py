@@ -241,10 +241,10 @@ BOX1: list[Level] = [
          om_nom=(240, 650), stars=[(240, 300), (240, 480), (200, 590)]),
     make("b1_l22", "Two now, one later",
          "Three ropes: cut two now, the left one among them, and the third swings the candy out to the right; let "
-         "go of it near the far end of the swing and it drops through the stars into Om Nom. Let go early and it "
-         "flies under them (one star or two).",
+         "go of it near the far end of the swing and it drops through the stars into Om Nom. Let go at once and it "
+         "flies low, into the spikes; a little later and it flies under the stars.",
          candies=[(240, 300)], ropes=[rope(140, 200), rope(340, 200), rope(320, 40, slack=10)],
-         om_nom=(420, 530), stars=[(320, 335), (405, 290), (420, 420)]),
+         spikes=[spikes((330, 440), (365, 440))], om_nom=(420, 530), stars=[(320, 335), (405, 290), (420, 420)]),
     make("b1_l23", "Up, across, down",
          "Let the bubble take the candy up into the automatic rope's reach, pop it, and let go of the automatic rope "
          "when its swing points at Om Nom.",
@@ -268,10 +268,11 @@ def cushion(x: float, y: float, angle: float) -> dict:
 
 BOX2: list[Level] = [
     make("b2_l01", "A puff of air",
-         "Cut the rope: the candy drops into the bubble and rises past the air cushion. Three puffs while it is in "
-         "front of the cushion push the bubble over, under Om Nom.",
-         candies=[(120, 520)], ropes=[rope(120, 420)], bubbles=[{"pos": (120, 600)}], cushions=[cushion(40, 330, 0)],
-         om_nom=(300, 100), stars=[(120, 400), (215, 335), (280, 210)]),
+         "Tap the air cushion: its puffs push the hanging candy into a swing. Cut the rope as the candy swings "
+         "toward Om Nom and it flies to him; three puffs and a cut at the top of the swing drop it through every "
+         "star.",
+         candies=[(140, 360)], ropes=[rope(140, 200)], cushions=[cushion(30, 360, 0)],
+         om_nom=(300, 470), stars=[(220, 360), (290, 280), (300, 390)]),
     make("b2_l02", "Puff the swing",
          "Puff the hanging candy: enough puffs and it swings up and round to Om Nom, through the stars; too few and "
          "it swings back.",
@@ -332,9 +333,9 @@ BOX2: list[Level] = [
          stars=[(300, 380), (300, 280), (300, 180)]),
     make("b2_l13", "Puff away from the spider",
          "A spider comes down the only rope. Puff the candy into a swing, and cut the rope at the top of the swing, "
-         "over Om Nom, before the spider arrives.",
+         "over Om Nom, before the spider arrives. A weak swing let go early falls short, onto the spikes.",
          candies=[(140, 360)], ropes=[rope(140, 200, spider=1.0)], cushions=[cushion(30, 360, 0)],
-         om_nom=(300, 470), stars=[(220, 360), (290, 280), (300, 390)]),
+         spikes=[spikes((205, 405), (258, 405))], om_nom=(300, 470), stars=[(220, 360), (290, 280), (300, 390)]),
     make("b2_l14", "Spider on a red rope",
          "A spider starts down the stretched rope. Cut the rope below and the red rope throws the candy up past its "
          "pin, where it stops and falls; let go of the red rope while it falls and it drops into Om Nom. Let go too "
@@ -415,10 +416,12 @@ BOX3: list[Level] = [
          candies=[(240, 160)], ropes=[rope(240, 60)], electrics=[electric((140, 400), (340, 400), 2.0, 1.2)],
          om_nom=(240, 620), stars=[(240, 280), (240, 470), (240, 540)]),
     make("b3_l03", "A ramp",
-         "Drop the candy on the metal ramp and it rolls down, through the stars, into Om Nom. Cut the wrong rope "
-         "first and it swings away from the ramp.",
-         candies=[(140, 240)], ropes=[rope(140, 120), rope(40, 140)], walls=[wall((110, 400), (340, 490))],
-         om_nom=(400, 550), stars=[(140, 330), (210, 400), (300, 440)]),
+         "Cut the two short ropes and the candy drops into the long rope's swing; let go of it at the top of the "
+         "swing and it falls through the stars onto the metal ramp, which rolls it into Om Nom. Let go of the long "
+         "rope first and a short one swings the candy away from the ramp.",
+         candies=[(100, 260)], ropes=[rope(160, 110, slack=20), rope(30, 180), rope(130, 150)],
+         walls=[wall((160, 440), (330, 580))], om_nom=(410, 610),
+         stars=[(200, 290), (234, 385), (300, 515)]),
     make("b3_l04", "Hook and sparks",
          "The hook carries the candy back and forth above a barrier that sparks on and off. Cut when the candy is "
          "over Om Nom and the barrier will be off as it passes.",
