@@ -332,6 +332,11 @@ def test_two_halves_join_with_momentum_conserved_and_only_a_whole_candy_is_eaten
     apart = world_of(make(candies=[{"pos": (240, 280)}, {"pos": (100, 100)}], om_nom=(240, 330)))
     apart.advance(30)
     assert apart.status == "lost" and "half" in apart.reason  # he ate a half: the level needs the whole candy
+    # Joined, the halves are "the candy" again in the feedback: lost off the screen, it is not a half.
+    joined = world_of(make(candies=[{"pos": (200, 300)}, {"pos": (260, 300)}], om_nom=(400, 650)))
+    joined.candies[0].vx, joined.candies[1].vx = 800.0, 500.0
+    joined.advance(200)
+    assert joined.status == "lost" and joined.reason == "the candy left the screen"
 
 
 def test_the_candy_does_not_pass_through_a_wall():

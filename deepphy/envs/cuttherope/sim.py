@@ -453,11 +453,11 @@ class World:
         geo, level = self.geo, self.level
         changed = False
         t = self.step_count
-        what = "a candy half" if level.halves else "the candy"
 
         for i, c in enumerate(self.candies):
             if not c.alive:
                 continue
+            what = _named(c)
             p, q = before[i], (c.x, c.y)
             move = abs(q[0] - p[0]) + abs(q[1] - p[1])
             r = c.radius
@@ -544,8 +544,9 @@ class World:
                 continue
             s.crawled += C.SPIDER_SPEED * C.DT
             if s.crawled >= self.rope_span(rope):
-                self.candies[rope.candy].alive = False
-                self._lose(f"the spider on the rope of P{s.pin} reached {what} and took it")
+                taken = self.candies[rope.candy]
+                taken.alive = False
+                self._lose(f"the spider on the rope of P{s.pin} reached {_named(taken)} and took it")
                 return True
 
         if level.halves:
@@ -596,6 +597,11 @@ class World:
 
 
 CANDIES = pymunk.ShapeFilter(group=1)  # candies do not collide with each other
+
+
+def _named(candy: Candy) -> str:
+    """The candy in the feedback's words: two halves that joined are "the candy" again."""
+    return "a candy half" if candy.half else "the candy"
 
 
 def _add_body(space: pymunk.Space, candy: Candy) -> pymunk.Body:
