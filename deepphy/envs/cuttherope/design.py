@@ -556,11 +556,14 @@ BOX5: list[Level] = [
          ropes=[rope(40, 160, candy=0), rope(200, 140, candy=0), rope(280, 140, candy=1), rope(440, 160, candy=1)],
          om_nom=(240, 620), stars=[(195, 285), (300, 330), (240, 480)]),
     make("b5_l03", "Drop one onto the other",
-         "One half hangs above the other. Drop it: it falls onto the lower half and they join, held by the lower "
-         "half's two ropes. Then cut those together, and the candy drops to Om Nom.",
+         "One half hangs above the other. Drop it, then cut both of the lower half's ropes in one swipe: the upper "
+         "half lands on the lower one (or, falling faster, catches it in the air) and the whole candy drops straight "
+         "through the stars to Om Nom. Cut the two ropes one at a time and the last one swings the lower half aside: "
+         "the halves miss each other, or the joined candy flies past the lowest star. Swipe at the first moment "
+         "after the drop and the lower half falls ahead, to Om Nom alone.",
          candies=[(240, 420), (250, 200)],
-         ropes=[rope(160, 330, candy=0), rope(320, 330, candy=0), rope(250, 90, candy=1)],
-         om_nom=(240, 640), stars=[(250, 310), (240, 520), (270, 580)]),
+         ropes=[rope(140, 330, candy=0), rope(320, 300, candy=0), rope(250, 90, candy=1)],
+         om_nom=(240, 640), stars=[(250, 300), (240, 490), (215, 560)]),
     make("b5_l04", "A half in a bubble",
          "Drop the lower half into the bubble: it rises to the upper half and they join, floating on the upper "
          "half's rope. Pop the bubble, then cut the rope, and the whole candy falls to Om Nom.",
@@ -568,10 +571,13 @@ BOX5: list[Level] = [
          ropes=[rope(220, 350, candy=0), rope(250, 160, candy=1)], om_nom=(250, 640),
          stars=[(200, 400), (250, 110), (250, 480)]),
     make("b5_l05", "Puff the halves together",
-         "Puff the right half into a swing toward the left half; when they touch they join, on both ropes. Cut both "
-         "ropes in one swipe and the candy drops to Om Nom.",
-         candies=[(150, 300), (330, 300)], ropes=[rope(150, 180, candy=0), rope(330, 180, candy=1)],
-         cushions=[cushion(450, 300, 180)], om_nom=(240, 620), stars=[(250, 310), (240, 420), (240, 520)]),
+         "Puff the right half three times: it swings up round its pin until it hangs over the left half. Let it go "
+         "there and it drops onto the left half: they join on the left rope; cut that and the whole candy falls to "
+         "Om Nom. One puff swings it only a little way (let go then and it meets the left half lower down, missing the "
+         "high star); five puffs throw it over its pin and away; let go of the left half first and a half reaches Om "
+         "Nom alone.",
+         candies=[(180, 330), (300, 240)], ropes=[rope(180, 230, candy=0), rope(300, 140, candy=1)],
+         cushions=[cushion(450, 240, 180)], om_nom=(140, 620), stars=[(215, 160), (176, 450), (168, 530)]),
     make("b5_l06", "Through the hat to the other half",
          "The left half drops into a hat; its pair throws it sideways into the right half. Joined, the candy hangs "
          "from the right half's rope: let it go over Om Nom.",
@@ -590,11 +596,13 @@ BOX5: list[Level] = [
          candies=[(80, 150), (285, 395)], ropes=[rope(80, 50, candy=0), rope(285, 275, candy=1)],
          active_pins=[{"pos": (180, 320), "radius": 110}], om_nom=(285, 640), stars=[(80, 250), (200, 440), (285, 530)]),
     make("b5_l09", "Throw a half",
-         "The red rope throws the left half at the right one. Joined in the air or on the rope, the candy then needs "
-         "letting go over Om Nom.",
+         "Cut the lower rope and the right half's rope in one swipe: the red rope throws the left half up into the "
+         "falling right half and they join on the red rope. Let the whole candy swing down through the low star and "
+         "back up, and let it go as it rises over Om Nom. Drop the right half late and it falls past the thrown one; "
+         "let go of the candy too early and it flies off, or drops in without the low star.",
          candies=[(100, 500), (340, 300)],
-         ropes=[rope(20, 580, candy=0, balance=True), rope(200, 400, candy=0, stretch=20), rope(340, 180, candy=1)],
-         om_nom=(340, 640), stars=[(180, 430), (330, 440), (340, 540)]),
+         ropes=[rope(20, 580, candy=0, balance=True), rope(200, 400, candy=0, stretch=25), rope(340, 180, candy=1)],
+         om_nom=(340, 640), stars=[(270, 390), (200, 530), (330, 450)]),
     make("b5_l10", "A spider on one half",
          "A spider comes down the right half's rope. Swing the left half into it before the spider arrives, then cut "
          "the joined candy loose.",
