@@ -296,15 +296,21 @@ BOX2: list[Level] = [
          cushions=[cushion(40, 470, 0), cushion(450, 230, 180)], spikes=[spikes((60, 340), (250, 340))],
          om_nom=(200, 70), stars=[(260, 440), (330, 300), (250, 140)]),
     make("b2_l06", "Puff the throw",
-         "The red rope throws the candy up toward Om Nom, but not far enough: a puff from below, as the candy "
-         "passes, carries it the rest of the way.",
+         "The red rope throws the candy up past its pin, but not far enough: a puff from below, as the candy passes "
+         "over the cushion, carries it the rest of the way to Om Nom. Let it swing once under the pin, through the "
+         "stars, and puff it when it comes back over the cushion; puffed on the throw itself it reaches him but "
+         "misses every star, and puffed anywhere else it swings on.",
          candies=[(80, 600)], ropes=[rope(20, 690, balance=True), rope(180, 460, stretch=30)],
-         cushions=[cushion(300, 620, 90)], om_nom=(380, 150), stars=[(150, 500), (280, 380), (320, 250)]),
+         cushions=[cushion(240, 640, 90)], om_nom=(330, 340), stars=[(286, 535), (149, 601), (45, 480)]),
     make("b2_l07", "Puff, then pop",
-         "The candy rises in a bubble; push the bubble over with the cushion until it is above Om Nom, then pop "
-         "it: he is below, and the bubble would carry the candy away.",
-         candies=[(100, 560)], bubbles=[{"pos": (100, 560)}], ropes=[rope(100, 660)], cushions=[cushion(20, 300, 0)],
-         om_nom=(330, 620), stars=[(100, 400), (200, 250), (320, 160)]),
+         "The candy rises in a bubble, tied down beside spikes. Cut it loose first (puffed while tied, it swings on "
+         "its short rope into the spikes), let it rise through the first star, then puff it over until it floats "
+         "above Om Nom and pop it: he is below, and the bubble would carry the candy away. Once it has drifted, one "
+         "puff leaves it short of him and five carry it past; puffed and popped at once, it drops to him but misses "
+         "the stars.",
+         candies=[(100, 560)], bubbles=[{"pos": (100, 560)}], ropes=[rope(100, 620)], cushions=[cushion(20, 500, 0)],
+         spikes=[spikes((150, 595), (150, 660))],
+         om_nom=(240, 620), stars=[(100, 440), (180, 410), (258, 340)]),
     make("b2_l08", "Puff it into the bubble",
          "Puff the hanging candy so that it swings into the bubble; the bubble lifts it on its rope, and cutting the "
          "rope lets it rise to Om Nom.",
@@ -379,11 +385,13 @@ BOX2: list[Level] = [
          bubbles=[{"pos": (170, 540)}], cushions=[cushion(30, 300, 0)], om_nom=(330, 90),
          stars=[(300, 540), (170, 400), (280, 220)]),
     make("b2_l22", "Puff, catch, swing",
-         "Puff the candy into the automatic rope's circle, cut its first rope, and let the automatic rope swing it "
-         "round to Om Nom.",
+         "Puff the candy toward the automatic rope's circle and cut its first rope: it flies into the circle and "
+         "the automatic rope catches it and swings it round. Let go as the swing carries it up on the right and it "
+         "drops through the stars into Om Nom; let go the moment it is caught and it still falls to him, but past "
+         "every star; let go on the way down and it misses him.",
          candies=[(120, 380)], ropes=[rope(120, 260)], cushions=[cushion(20, 380, 0)],
-         active_pins=[{"pos": (280, 260), "radius": 90}],
-         om_nom=(420, 440), stars=[(200, 380), (330, 250), (380, 300)]),
+         active_pins=[{"pos": (230, 320), "radius": 70}],
+         om_nom=(340, 530), stars=[(258, 342), (308, 410), (312, 468)]),
     make("b2_l23", "Fabric finale",
          "A spider, a bubble, a cushion and spikes: beat the spider, ride the bubble, puff it clear of the spikes and "
          "pop it over Om Nom.",
