@@ -164,10 +164,12 @@ BOX1: list[Level] = [
          candies=[(120, 300)], bubbles=[{"pos": (120, 300)}], ropes=[rope(40, 420), rope(265, 420)],
          om_nom=(265, 520), stars=[(170, 240), (245, 220), (265, 330)]),
     make("b1_l08", "Throw it into the bubble",
-         "Cut the rope above the candy and it swings on the other; let go so that it flies into the bubble, which "
-         "carries it up to Om Nom.",
-         candies=[(120, 380)], ropes=[rope(120, 260), rope(220, 207, slack=0)], bubbles=[{"pos": (330, 515)}],
-         om_nom=(380, 110), stars=[(175, 400), (280, 470), (380, 300)]),
+         "Cut the rope above the candy and, at once, the other one: the candy, barely swinging yet, drops into the "
+         "bubble under Om Nom, which carries it up through the stars into him. Let go a moment later and the swing "
+         "throws the candy at Om Nom directly, past every star; cut the other rope first and it drops straight down, "
+         "wide of the bubble.",
+         candies=[(110, 180)], ropes=[rope(110, 100), rope(230, 100, slack=0)], bubbles=[{"pos": (240, 560)}],
+         om_nom=(260, 340), stars=[(176, 360), (234, 490), (234, 425)]),
     make("b1_l09", "The rope steers the bubble",
          "The bubble lifts the candy straight up until the slack rope comes taut; then the rope turns it, floating, "
          "around its pin to Om Nom.",
@@ -190,20 +192,24 @@ BOX1: list[Level] = [
          candies=[(140, 520)], ropes=[rope(40, 627, balance=True), rope(280, 380, stretch=35)], om_nom=(330, 590),
          stars=[(230, 445), (440, 385), (370, 470)]),
     make("b1_l13", "Slingshot to a rope",
-         "Cut the lower rope and the red rope slings the candy up; let it go at the top of its flight and the "
-         "automatic rope catches it and swings it to Om Nom.",
-         candies=[(100, 600)], ropes=[rope(20, 680, balance=True), rope(160, 420, stretch=30)],
-         active_pins=[{"pos": (340, 420), "radius": 75}], om_nom=(430, 610), stars=[(150, 470), (230, 400), (400, 500)]),
+         "Cut the lower rope and at once the red one: the red rope slings the candy up into the automatic rope's "
+         "circle, which catches it at the top, over Om Nom. Let go there and it drops to him, missing the stars on the "
+         "circle; let it swing round once through them first, and let go as it swings back toward him. Keep the red "
+         "rope a moment longer and it pulls the candy back; wait too long and the swing throws it past him.",
+         candies=[(110, 620)], ropes=[rope(30, 700, balance=True), rope(200, 500, stretch=45)],
+         active_pins=[{"pos": (270, 390), "radius": 85}], om_nom=(370, 560), stars=[(180, 535), (190, 426), (314, 353)]),
     make("b1_l14", "Tug of war",
          "Two stretched ropes pull the candy both ways. Cut one and the other throws the candy past its pin; the "
          "right one's swing brings it round to Om Nom, the left one's away from him.",
          candies=[(240, 380)], ropes=[rope(60, 380, stretch=25), rope(420, 380, balance=True)],
          om_nom=(300, 570), stars=[(320, 375), (400, 430), (380, 560)]),
-    make("b1_l15", "Throw it into the bubble",
-         "The stretched rope throws the candy sideways; let go as it passes the bubble's height and it floats up to "
-         "Om Nom.",
-         candies=[(380, 560)], ropes=[rope(470, 640, balance=True), rope(250, 520, stretch=30)],
-         bubbles=[{"pos": (160, 545)}], om_nom=(170, 120), stars=[(300, 530), (230, 560), (180, 300)]),
+    make("b1_l15", "Sling, float, pop",
+         "Cut the lower rope and at once the red one: the red rope slings the candy up into the bubble, which carries "
+         "it up in a line over Om Nom. Pop it when it has risen through the stars and the candy drops straight into him; "
+         "pop it at once and it flies past the stars. Keep the red rope a moment longer and it drags the bubble back, "
+         "out of line with him.",
+         candies=[(120, 600)], ropes=[rope(60, 660, balance=True), rope(160, 520, stretch=30)],
+         bubbles=[{"pos": (210, 470)}], om_nom=(270, 575), stars=[(240, 400), (251, 300), (251, 200)]),
     make("b1_l16", "Swing out, let go",
          "Cut the left rope: the right one swings the candy out to the right; let go at the far end of the swing and "
          "it drops to Om Nom. Cut the right rope first and the swing goes the wrong way.",
