@@ -442,11 +442,14 @@ BOX3: list[Level] = [
          candies=[(100, 220)], ropes=[rope(100, 100, track=track(380, 100, 8.0))],
          electrics=[electric((200, 420), (460, 420), 1.6, 0.8)], om_nom=(360, 560), stars=[(240, 230), (330, 470), (330, 350)]),
     make("b3_l05", "Hook and anchor",
-         "The hook carries the candy along; a slack rope from a fixed pin would swing it back. Cut both in one swipe "
-         "when the candy is where its fall ends in Om Nom.",
-         candies=[(100, 300)], ropes=[rope(100, 150, track=track(250, 150, 4.0)),
-                                       rope(380, 120, slack=40)],
-         om_nom=(400, 620), stars=[(170, 320), (300, 330), (390, 460)]),
+         "The hook carries the candy along; slack ropes from fixed pins on both sides would catch it and swing it "
+         "back. Let it ride, and cut all three ropes in one swipe (or the hook's and the left one, then at once the "
+         "right one) when the candy is where its fall ends in Om Nom, through the stars. Leave a rope on and it "
+         "catches the candy; cut the hook's rope at once and the right rope swings the candy: let go of it at just "
+         "the right moment and it still falls to Om Nom, but past every star.",
+         candies=[(100, 300)], ropes=[rope(100, 150, track=track(250, 150, 4.0)), rope(420, 140, slack=40),
+                                       rope(30, 140, slack=100)],
+         om_nom=(260, 600), stars=[(165, 270), (190, 360), (215, 440)]),
     make("b3_l06", "Bounce off the wall",
          "Let go of the swing so that the candy hits the wall and bounces back down into Om Nom, who sits where no "
          "straight throw reaches.",
@@ -520,10 +523,12 @@ BOX4: list[Level] = [
          candies=[(80, 120)], ropes=[rope(80, 30)], hats=[hats((80, 420), 90, (200, 150), 0)],
          active_pins=[{"pos": (380, 230), "radius": 90}], om_nom=(370, 350), stars=[(80, 300), (300, 170), (440, 250)]),
     make("b4_l10", "The spider and the hat",
-         "A spider comes down the short rope. Cut it in time: the candy drops, the slack rope catches it and swings "
-         "it into the hat, whose pair drops it on Om Nom.",
-         candies=[(140, 200)], ropes=[rope(140, 100, spider=0.0), rope(300, 120, slack=40)],
-         hats=[hats((300, 345), 180, (60, 380), 270)], om_nom=(60, 640), stars=[(200, 300), (250, 335), (60, 500)]),
+         "A spider comes down the left of the two short ropes. Cut both short ropes in one swipe before it arrives: "
+         "the candy drops, the long slack rope catches it and swings it through the stars into the hat, and the pair "
+         "drops it on Om Nom. Cut the spider's rope alone and the other short rope keeps the candy; let that one go "
+         "later and the candy reaches the hat off the stars' line, or misses it.",
+         candies=[(140, 200)], ropes=[rope(140, 100, spider=0.0), rope(400, 160, slack=0), rope(260, 80)],
+         hats=[hats((340, 400), 180, (60, 380), 270)], om_nom=(60, 640), stars=[(200, 300), (250, 335), (60, 500)]),
     make("b4_l11", "Through the hat, past the sparks",
          "The pair of the hat opens above an electric barrier. Drop the candy when it will come out while the "
          "barrier is off.",
@@ -546,11 +551,15 @@ BOX4: list[Level] = [
          candies=[(100, 560)], bubbles=[{"pos": (100, 560)}], ropes=[rope(100, 660)], cushions=[cushion(20, 420, 0)],
          hats=[hats((240, 200), 270, (340, 250), 0)], om_nom=(430, 620), stars=[(100, 470), (240, 300), (430, 400)]),
     make("b4_l15", "Magic finale",
-         "Hook, hats, sparks and a spider: let go of the moving candy before the spider reaches it, into the hat, "
-         "when its pair will send it out while the barrier is off.",
-         candies=[(80, 220)], ropes=[rope(80, 100, track=track(380, 100, 8.0), spider=3.5)],
-         hats=[hats((260, 450), 90, (420, 300), 270)], electrics=[electric((340, 420), (470, 420), 2.0, 1.0)],
-         om_nom=(420, 630), stars=[(170, 230), (260, 360), (420, 520)]),
+         "Hook, hats, sparks and a spider. The hook carries the candy right until the long rope on the left holds it "
+         "back over the hat. Let it go there, the hook's rope and that rope in one swipe and the right rope at once "
+         "after (before it catches the candy), when the hat's pair will let it out while the barrier is off: it drops "
+         "through the stars into the hat and on to Om Nom. No time for a second trip: a spider starts down the hook's "
+         "rope. Cut the hook's rope at once and the right rope swings the candy into the hat, past every star.",
+         candies=[(80, 220)], ropes=[rope(80, 100, track=track(380, 100, 8.0), spider=3.5), rope(260, 140, slack=0),
+                                      rope(40, 210, slack=200)],
+         hats=[hats((260, 450), 90, (420, 300), 270)], electrics=[electric((340, 420), (470, 420), 2.0, 1.0, 0.65)],
+         om_nom=(420, 630), stars=[(280, 200), (270, 275), (270, 350)]),
 ]
 
 # -- box 5: Valentine --------------------------------------------------------------------------------
