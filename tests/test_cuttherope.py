@@ -726,6 +726,15 @@ def test_the_calibration_report_gives_the_exact_rate_beside_the_sampled_one(tmp_
     rows[2]["level"] = "b5_l02"
     lucky = [t for t in _targets(rows, check_needs=False) if "a third of the time" in t["target"]]
     assert lucky[0]["met"] is False and lucky[0]["figure"] == "b5_l02 50 %"
+    # "No box at 0 %" asks whether random can win some level of each box: the exact rates say, not
+    # three runs (b3_l03 went unwon in runs 0-2 though random wins it 1 time in 6).
+    rows = [dict(r) for r in data["levels"]]
+    assert [r["mock_wins"] for r in rows] == [1, 0, 1]
+    rows[0]["mock_wins"] = 0  # 1 of 9 episodes: inside the 6-16 % range
+    baseline = lambda rows: next(t for t in _targets(rows, check_needs=False) if "no box at 0 %" in t["target"])  # noqa: E731
+    assert baseline(rows)["met"] is True and "b3 16.7 %" in baseline(rows)["figure"]
+    rows[1]["baseline_exact"] = {"sequences": 6, "rate": 0.0, "stars": {}}
+    assert baseline(rows)["met"] is False
 
 
 def test_needs_tells_a_needed_element_from_decoration():

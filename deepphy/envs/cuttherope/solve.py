@@ -176,6 +176,14 @@ def _targets(rows: list[dict], check_needs: bool) -> list[dict]:
     fragile = [r["level"] for r in rows if r["robust"]["won"] < r["robust"]["variants"]]
     all_win = [r["level"] for r in rows if r["first_actions_all_win"]]
     exact = _summary(rows)["baseline_exact"]
+    # A box is at 0 % when random cannot win any of its levels: judged on the exact rates where
+    # they are known. Three runs of a 7-level box are 21 episodes: two levels random wins 1 time
+    # in 6 go unwon in all of them a third of the time.
+    box_rates = {}
+    for box, wins in by_box.items():
+        in_box = [r for r in rows if r["box"] == box]
+        box_rates[box] = (sum(wins) / (MOCK_RUNS * len(wins)) if exact is None
+                          else sum(r["baseline_exact"]["rate"] for r in in_box) / len(in_box))
     lucky = [f"{r['level']} {100 * r['baseline_exact']['rate']:.0f} %" for r in rows
              if r["baseline_exact"] and r["baseline_exact"]["rate"] >= RANDOM_WINS_MAX - 1e-9
              and not r["level"].endswith("_l01")]
@@ -187,10 +195,11 @@ def _targets(rows: list[dict], check_needs: bool) -> list[dict]:
          "figure": ", ".join(f"{r['level']}: {r['plan_sleeps']} sleeps" for r in first3)},
         {"target": f"reference baseline over all levels {100 * BASELINE_TARGET[0]:g}-{100 * BASELINE_TARGET[1]:g} % "
                    f"({MOCK_RUNS} runs, seed 0), no box at 0 %",
-         "met": BASELINE_TARGET[0] <= mock <= BASELINE_TARGET[1] and all(sum(w) > 0 for w in by_box.values()),
+         "met": BASELINE_TARGET[0] <= mock <= BASELINE_TARGET[1] and all(r > 0 for r in box_rates.values()),
          "figure": f"{100 * mock:.1f} %; by box " + ", ".join(f"b{b} {100 * sum(w) / (MOCK_RUNS * len(w)):.1f} %"
                                                               for b, w in sorted(by_box.items()))
-                   + ("" if exact is None else f" (the exact rate those runs draw from: {100 * exact:.1f} %)")},
+                   + ("" if exact is None else f" (the exact rates those runs draw from: {100 * exact:.1f} %; by box "
+                      + ", ".join(f"b{b} {100 * r:.1f} %" for b, r in sorted(box_rates.items())) + ")")},
         {"target": f"at most {FIRST_WINS_MAX} levels where every first action wins", "met": len(all_win) <= FIRST_WINS_MAX,
          "figure": ", ".join(all_win) or "none"},
         {"target": "no level but a box's opener won by the reference baseline a third of the time or more (exact)",
