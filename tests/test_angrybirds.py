@@ -639,3 +639,22 @@ def test_prompt_gives_the_reference_information_and_ballistics_only_with_physics
     assert not any(b in plain for b in ballistics) and all(b in hinted for b in ballistics)
     assert level.title not in plain_obs and f"Level s2_l07: {level.title}." in hinted_obs
     assert AngryBirdsEnv.Options.model_validate({"physics_hints": "true"}).physics_hints is True
+
+
+def test_the_calibration_flags_a_level_random_wins_a_third_of_the_time(capsys):
+    # DEVELOPERS.md: a level a random agent wins a third of the time measures luck; a scene's
+    # first level (a tutorial) may be that forgiving.
+    from deepphy.envs.angrybirds.solve import overall, print_calibration
+
+    def row(level: str, episode: float) -> dict:
+        return {"level": level, "birds": "RR", "pigs": 1, "idea": "", "episodes": 3, "random_single": 0.0,
+                "random_episode": episode, "random_episode_runs": [True, False, False], "random_stars": None,
+                "random_three_stars": 0, "random_wins": 0, "capped_shots": 0, "oracle_birds": 1,
+                "oracle_evidence": 0, "oracle_stars": 3, "robustness": 1.0, "one_shot_wins": 0,
+                "one_shot_below_three": 0, "ability_needed": "-"}
+
+    rows = [row("s1_l01", 0.51), row("s1_l07", 0.34), row("s2_l02", 0.25)]
+    assert overall(rows)["lucky"] == ["s1_l07"]
+    print_calibration(rows, overall(rows))
+    assert "third of the time or more: s1_l07 34 % [target none: MISSED]" in capsys.readouterr().out
+    assert overall([row("s1_l01", 0.9), row("s2_l02", 0.32)])["lucky"] == []

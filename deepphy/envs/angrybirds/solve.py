@@ -50,6 +50,7 @@ TARGET_EPISODE_WINS = (0.10, 0.25)  # share of levels the reference baseline win
 TARGET_MAX_SINGLE = 0.40  # no level above this share of random single-shot wins
 TARGET_NEED_TWO, TARGET_NEED_THREE = 10, 4  # levels whose oracle needs 2+ / 3+ birds
 TARGET_ROBUSTNESS = 0.20  # every stored plan at least this robust
+RANDOM_WINS_MAX = 1 / 3  # a level random wins a third of the time measures luck (DEVELOPERS.md); a scene's first aside
 
 
 def _letters(level: Level) -> str:
@@ -188,6 +189,7 @@ def overall(rows: list[dict]) -> dict:
         "need_two": sum(r["oracle_birds"] >= 2 for r in rows),
         "need_three": sum(r["oracle_birds"] >= 3 for r in rows),
         "robustness_min": min(r["robustness"] for r in rows),
+        "lucky": [r["level"] for r in rows if r["random_episode"] >= RANDOM_WINS_MAX and not r["level"].endswith("_l01")],
         "one_shot_levels_all_three": [r["level"] for r in rows
                                       if r["oracle_birds"] == 1 and r["one_shot_below_three"] == 0],
         "capped_shots": sum(r["capped_shots"] for r in rows),
@@ -221,6 +223,10 @@ def print_calibration(rows: list[dict], total: dict) -> None:
           f"{mark(t['need_three'] >= TARGET_NEED_THREE)}]")
     print(f"least robustness of a stored plan: {t['robustness_min']:.2f} [target >= {TARGET_ROBUSTNESS:.2f}: "
           f"{mark(t['robustness_min'] >= TARGET_ROBUSTNESS)}]")
+    lucky = ", ".join(f"{level} {100 * next(r['random_episode'] for r in rows if r['level'] == level):.0f} %"
+                      for level in t["lucky"])
+    print(f"levels but a scene's first that random episodes win a third of the time or more: {lucky or 'none'} "
+          f"[target none: {mark(not t['lucky'])}]")
     print(f"one-shot levels where every one-shot win seen earned 3 stars: "
           f"{', '.join(t['one_shot_levels_all_three']) or 'none'}")
     print(f"shots that stopped at the {C.SHOT_MAX_TIME:g} s cap: {t['capped_shots']}")
