@@ -223,8 +223,7 @@ def print_calibration(rows: list[dict], total: dict) -> None:
           f"{mark(t['need_three'] >= TARGET_NEED_THREE)}]")
     print(f"least robustness of a stored plan: {t['robustness_min']:.2f} [target >= {TARGET_ROBUSTNESS:.2f}: "
           f"{mark(t['robustness_min'] >= TARGET_ROBUSTNESS)}]")
-    lucky = ", ".join(f"{level} {100 * next(r['random_episode'] for r in rows if r['level'] == level):.0f} %"
-                      for level in t["lucky"])
+    lucky = ", ".join(f"{r['level']} {100 * r['random_episode']:.0f} %" for r in rows if r["level"] in t["lucky"])
     print(f"levels but a scene's first that random episodes win a third of the time or more: {lucky or 'none'} "
           f"[target none: {mark(not t['lucky'])}]")
     print(f"one-shot levels where every one-shot win seen earned 3 stars: "
