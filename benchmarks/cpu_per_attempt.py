@@ -287,7 +287,7 @@ def measure(name: str, quick: bool, rounds: int, scratch: str) -> tuple[list[flo
             f"{s} {stages.get(s, 0.0) / attempts * 1000:.1f} ms" for s in ("simulate", "render", "encode"))
             + f" = {work * 1000:.1f} ms  (the whole in-process loop: {loop_cpu / attempts * 1000:.1f} ms)")
         print("  the run's CPU per attempt, by process: " + ", ".join(
-            f"{r} {c / n * 1000:.1f} ms (kernel {kernel[r] / n * 1000:.1f})"
+            f"{r} {c / n * 1000:.2f} ms (kernel {kernel[r] / n * 1000:.2f})"
             for r, c in sorted(roles.items(), key=lambda kv: -kv[1])) + f" = {total * 1000:.1f} ms")
         workers = roles.get("env workers", 0.0)
         if env_thread is None:

@@ -54,6 +54,7 @@ class MockModel(ModelClient):
     """The reference implementation's random baseline."""
 
     name = "mock"
+    answers_at_once = True
 
     async def complete(self, request: ModelRequest) -> ModelResponse:
         return ModelResponse(text=mock_text(request.context, self.name))

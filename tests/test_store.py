@@ -260,6 +260,21 @@ def stored(messages: list[Message]) -> list[dict]:
     return json.loads(prompt_as_json(messages))
 
 
+def test_a_stored_prompt_is_json_dumps_of_its_parts_byte_for_byte():
+    """`prompt_as_json` joins remembered JSON strings by hand: the very bytes json.dumps gives,
+    for the strings a prompt can hold (quotes, backslashes, control characters, non-ASCII),
+    the second time as the first."""
+    odd = 'a "quoted" \\ back\\slash\n\ttab \x00\x1f caf\u00e9 \u2713 \U0001f600 </script>'
+    scene = Image.from_array(odd, odd[::-1], np.full((4, 6, 3), 3, np.uint8))
+    messages = [Message(role="system", content=[TextPart(text=odd)]),
+                Message(role="user", content=[TextPart(text=""), ImagePart(image=scene), TextPart(text=odd + "!")])]
+    expected = json.dumps([{"role": "system", "content": [odd]},
+                           {"role": "user", "content": ["", {"image": scene.digest, "name": odd, "caption": odd[::-1]}, odd + "!"]}],
+                          separators=(",", ":"))
+    assert prompt_as_json(messages) == expected
+    assert prompt_as_json(messages) == expected  # from the remembered strings
+
+
 def test_prompts_are_a_log_per_episode_a_line_per_distinct_prompt(tmp_path):
     (a, first), (b, second) = prompt("decide", 1), prompt("decide again", 2)
     with RunStore.create_or_resume(tmp_path, RunConfig(runs=2)) as store:

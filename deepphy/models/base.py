@@ -7,7 +7,7 @@ path is exercised the same way for a random baseline and for a real VLM.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any
+from typing import Any, ClassVar
 
 from pydantic import BaseModel, Field
 
@@ -83,6 +83,9 @@ def _rebuild_model_error(cls: type, message: str, retries: int, kind: str) -> "M
 
 class ModelClient(ABC):
     name: str
+    # Computes its reply in this process without waiting on anything (the random baselines):
+    # the scheduler sets no deadline on it.
+    answers_at_once: ClassVar[bool] = False
 
     @abstractmethod
     async def complete(self, request: ModelRequest) -> ModelResponse: ...
