@@ -34,6 +34,7 @@ import sys
 import time
 from pathlib import Path
 
+from deepphy.envs.calibration import wins_by_luck
 from deepphy.envs.angrybirds import constants as C
 from deepphy.envs.angrybirds.levels import Level, Oracle, Shot, level_ids, load_level, save_level, star_thresholds
 from deepphy.envs.angrybirds.oracle import (
@@ -50,7 +51,6 @@ TARGET_EPISODE_WINS = (0.10, 0.25)  # share of levels the reference baseline win
 TARGET_MAX_SINGLE = 0.40  # no level above this share of random single-shot wins
 TARGET_NEED_TWO, TARGET_NEED_THREE = 10, 4  # levels whose oracle needs 2+ / 3+ birds
 TARGET_ROBUSTNESS = 0.20  # every stored plan at least this robust
-RANDOM_WINS_MAX = 1 / 3  # a level random wins a third of the time measures luck (DEVELOPERS.md); a scene's first aside
 
 
 def _letters(level: Level) -> str:
@@ -189,7 +189,7 @@ def overall(rows: list[dict]) -> dict:
         "need_two": sum(r["oracle_birds"] >= 2 for r in rows),
         "need_three": sum(r["oracle_birds"] >= 3 for r in rows),
         "robustness_min": min(r["robustness"] for r in rows),
-        "lucky": [r["level"] for r in rows if r["random_episode"] >= RANDOM_WINS_MAX and not r["level"].endswith("_l01")],
+        "lucky": [r["level"] for r in rows if wins_by_luck(r["level"], r["random_episode"])],
         "one_shot_levels_all_three": [r["level"] for r in rows
                                       if r["oracle_birds"] == 1 and r["one_shot_below_three"] == 0],
         "capped_shots": sum(r["capped_shots"] for r in rows),

@@ -41,6 +41,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from deepphy.envs.calibration import wins_by_luck
 from deepphy.envs.cuttherope import constants as C
 from deepphy.envs.cuttherope.calibrate import (
     BASELINE_EPISODES,
@@ -70,7 +71,6 @@ from deepphy.envs.cuttherope.oracle import (
 MOCK_RUNS = 3  # the runs of `deepphy run --model mock --runs 3 --seed 0`, the README's baseline row
 BASELINE_TARGET = (0.06, 0.16)  # the target for the reference baseline over all levels (MOCK_RUNS runs)
 FIRST_WINS_MAX = 3  # at most this many levels (the first tutorials) where every first action wins
-RANDOM_WINS_MAX = 1 / 3  # a level random wins a third of the time measures luck (DEVELOPERS.md); openers aside
 
 
 # -- report -------------------------------------------------------------------------------------------
@@ -182,8 +182,7 @@ def _targets(rows: list[dict], check_needs: bool) -> list[dict]:
     # in 6 go unwon in all of them a third of the time.
     box_rates = sampled if exact is None else {box: _summary(rs)["baseline_exact"] for box, rs in by_box.items()}
     lucky = [f"{r['level']} {100 * r['baseline_exact']['rate']:.0f} %" for r in rows
-             if r["baseline_exact"] and r["baseline_exact"]["rate"] >= RANDOM_WINS_MAX - 1e-9
-             and not r["level"].endswith("_l01")]
+             if r["baseline_exact"] and wins_by_luck(r["level"], r["baseline_exact"]["rate"])]
     out = [
         {"target": "every stored plan wins with every sleep moved by +-0.1 s", "met": not fragile,
          "figure": f"{len(rows) - len(fragile)} of {len(rows)} robust" + (f"; not: {', '.join(fragile)}" if fragile else "")},
