@@ -357,6 +357,25 @@ def test_every_level_is_drawn_as_its_data_says():
             assert moved < 0.15 and turned < 10, (level_id, thing.kind, thing.index, round(moved, 3), round(turned, 1))
 
 
+def test_every_level_has_what_its_idea_names():
+    """A level's idea is what the calibration prints and a designer reads: the pigs, the
+    materials and the birds it names are in the level (s1_l03's named a medium pig where a
+    small one stood). "Stone" may be the fixed rock of platforms and terrain."""
+    import re
+
+    for level_id in level_ids():
+        level = load_level(level_id)
+        idea = level.idea.lower()
+        materials = {b.material for b in level.blocks} | ({"stone"} if level.platforms or level.terrain else set())
+        named = {f"{size} pig": any(p.size == size for p in level.pigs) for size in ("small", "medium", "big")}
+        named |= {word: material in materials for word, material in
+                  (("stone", "stone"), ("ice", "ice"), ("glass", "ice"), ("wood", "wood"))}
+        named |= {bird: bird in level.birds for bird in ("red", "yellow", "blue", "black")}
+        named["tnt"] = bool(level.tnt)
+        missing = [word for word, present in named.items() if re.search(rf"\b{word}", idea) and not present]
+        assert missing == [], (level_id, missing, level.idea)
+
+
 def test_a_shot_ends_on_the_state_the_next_one_starts_from():
     """After a shot no bird is left and idling 10 s more changes nothing: the settled
     picture is the true next state."""
