@@ -23,6 +23,7 @@ from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.messages import validation_message
 from deepphy.metrics import figures as F
 from deepphy.metrics.live import format_progress
+from deepphy.runs.records import summaries_json
 from deepphy.runs.status import RunStatus, remove_status, write_status
 from deepphy.runs.store import CONFIG, RunStore, check_records, read_records
 
@@ -301,7 +302,7 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
                   *([limiter] if limiter is not None and shared is None else [])]
         # Not waited for here: the metrics actor's process starts while the workers start and the
         # first attempts run (its calls queue in order until it is up); `_drive` checks it came up.
-        metrics_ready = metrics.add.remote([r.summary() for r in existing], resumed=True)
+        metrics_ready = metrics.add.remote(summaries_json([r.summary() for r in existing]), resumed=True)
         if view:
             view.stop()
             view = None

@@ -28,7 +28,7 @@ from deepphy.envs import Action, EnvSpec, Observation, StepResult, Task
 from deepphy.envs.base import ObservationCache
 from deepphy.models import AccessDenied, ModelError, ModelRequest, ModelResponse
 from deepphy.protocol import ModelHandle, run_attempt
-from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished
+from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished, summaries_json
 from deepphy.runs.store import RunStore, RunWriteError
 
 log = logging.getLogger(__name__)
@@ -330,7 +330,7 @@ class Scheduler:
         if self.unsent:
             batch, self.unsent = self.unsent, []
             if self.metrics is not None:
-                self.metrics.add.remote(batch)
+                self.metrics.add.remote(summaries_json(batch))
 
     async def _send_summaries_every(self, seconds: float) -> None:
         told: dict[str, Any] = {}

@@ -112,6 +112,23 @@ def test_combined_report_labels_rows_by_setting():
 # -- live metrics (what the metrics actor serves to progress views) ---------------------
 
 
+def test_summaries_cross_to_the_metrics_actor_as_json_unchanged():
+    from deepphy.actors.metrics_actor import MetricsImpl
+    from deepphy.chat import Usage
+    from deepphy.runs.records import ModelStats, summaries_from_json, summaries_json
+
+    paid = rec("a", 0, 2, success=True, stars=3, steps=2).model_copy(
+        update={"model_stats": ModelStats(usage=Usage(input_tokens=1200, output_tokens=30, cost_usd=0.0123), retries=2)})
+    summaries = [rec("a", 0, 1, invalid="bad", group="S").summary(), paid.summary()]
+    assert summaries_from_json(summaries_json(summaries)) == summaries
+    actor = MetricsImpl(episodes_total=1, max_attempts=3)
+    actor.add(summaries_json(summaries))
+    snap = actor.snapshot()
+    assert (snap["episodes_done"], snap["solved"], snap["attempts"]) == (1, 1, 2)
+    with pytest.raises(ValueError):  # a batch is validated as it arrives
+        actor.add(b'[{"task": "a"}]')
+
+
 def test_live_metrics_snapshot_counts_finished_episodes_and_rates():
     from deepphy.metrics.live import LiveMetrics
 

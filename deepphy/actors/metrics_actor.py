@@ -9,7 +9,7 @@ import ray
 
 from deepphy.actors.placement import beside_driver
 from deepphy.metrics.live import LiveMetrics
-from deepphy.runs.records import AttemptSummary
+from deepphy.runs.records import summaries_from_json
 
 
 class MetricsImpl:
@@ -18,8 +18,9 @@ class MetricsImpl:
         self.live = LiveMetrics(episodes_total, max_attempts, max_steps)
         self.run = run or {}  # where the run writes and what it evaluates: dashboards find it here
 
-    def add(self, summaries: list[AttemptSummary], resumed: bool = False) -> None:
-        self.live.add(summaries, resumed)
+    def add(self, summaries: bytes, resumed: bool = False) -> None:
+        """A batch of attempt summaries, as `deepphy.runs.records.summaries_json` wrote it."""
+        self.live.add(summaries_from_json(summaries), resumed)
 
     def update(self, activity: dict[str, Any]) -> None:
         self.live.update(**activity)
