@@ -21,16 +21,13 @@ TESTS = os.path.dirname(os.path.abspath(__file__))
 os.environ["PYTHONPATH"] = os.pathsep.join(p for p in [TESTS, os.environ.get("PYTHONPATH", "")] if p)
 
 RAY_TIMEOUT_S = 120
-# The team's ground-truth data sits beside the repository (../shared/data; CI puts it there).
-SHARED_DATA = Path(os.environ.get("DEEPPHY_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+# The tests' own data (ground truth from the real simulators), kept in the repository:
+# tests/data/README.md says where each file came from.
+TEST_DATA = Path(__file__).resolve().parent / "data"
 
 
-def shared_data(name: str) -> Path:
-    path = SHARED_DATA / name
-    if not path.exists():
-        raise FileNotFoundError(f"{path} is missing: the tests read the team's ground truth from ../shared/data "
-                                "beside the repository (or set DEEPPHY_SHARED_DATA)")
-    return path
+def data_file(name: str) -> Path:
+    return TEST_DATA / name
 
 
 @pytest.fixture(scope="session")

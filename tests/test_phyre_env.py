@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import shared_data
+from conftest import data_file
 from pydantic import ValidationError
 
 from deepphy.envs import Planning, Task, get_env_class
@@ -15,7 +15,7 @@ from deepphy.envs.phyre import PhyreAction, PhyreContinuousAction
 from deepphy.envs.phyre.env import PhyreEnv, PhyreOptions, phyre_id, task_id
 from deepphy.prompts import PromptFormat, build_messages
 
-GROUND_TRUTH = json.loads(shared_data("phyre_real_grid_outcomes.json").read_text())
+GROUND_TRUTH = json.loads(data_file("phyre_real_grid_outcomes.json").read_text())
 
 
 @pytest.fixture(scope="module")

@@ -10,14 +10,14 @@ from pathlib import Path
 
 import pytest
 
-from conftest import shared_data
+from conftest import data_file
 
 from deepphy.envs.phyre import data, sim
 from deepphy.envs.phyre.env import SPACES
 from deepphy.envs.phyre.solve import grid_statuses
 from deepphy.envs.phyre.space import Ball, InvalidPlacement, PhyreAction, ball_from_action
 
-GROUND_TRUTH = json.loads(shared_data("phyre_real_grid_outcomes.json").read_text())
+GROUND_TRUTH = json.loads(data_file("phyre_real_grid_outcomes.json").read_text())
 GRID = SPACES["grid5"]
 MIN_AGREEMENT = 0.999
 

@@ -9,12 +9,12 @@ from pathlib import Path
 
 import pytest
 
-from conftest import shared_data
+from conftest import data_file
 
 from deepphy.envs.phyre import data
 from deepphy.envs.phyre.splits import get_fold, stable_shuffle
 
-GROUND_TRUTH = shared_data("phyre_real_grid_outcomes.json")  # real phyre 0.2.2
+GROUND_TRUTH = data_file("phyre_real_grid_outcomes.json")  # real phyre 0.2.2
 
 
 def templates(ids):

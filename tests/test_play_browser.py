@@ -5,7 +5,7 @@ a level resumes at the same decision; replays animate; a screenshot of each envi
 play page goes to $DEEPPHY_SCREENSHOTS (default: the test's tmp directory).
 
 The actions come from the environments' own data: a PHYRE grid action that solves its task
-(../shared/data), the stored winning plans of the Angry Birds and Cut the Rope levels
+(tests/data), the stored winning plans of the Angry Birds and Cut the Rope levels
 (their level files), so the tests follow the games as they change.
 """
 
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import shared_data
+from conftest import data_file
 from deepphy.config import RunConfig
 from deepphy.envs import ActionSpace, get_spec
 from deepphy.play.human import JOURNAL
@@ -73,7 +73,7 @@ def play():
 
 def phyre_solution() -> tuple[str, str]:
     """A PHYRE task of the evaluation set and a grid action that solves it (real PHYRE's outcome)."""
-    data = json.loads(shared_data("phyre_real_grid_outcomes.json").read_text())
+    data = json.loads(data_file("phyre_real_grid_outcomes.json").read_text())
     task = sorted(data["outcomes"])[0]
     cell, radius = data["actions"][data["outcomes"][task].index(1)]
     return f"within_{task.replace(':', '-')}", f"Cell: {cell}, Radius: {radius}"
