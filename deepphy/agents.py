@@ -8,14 +8,19 @@ as a real model's:
 - `mock`: the reference implementation's random baseline of each environment (its
   `ActionSpace.reference_reply`), so MOCK rows compare with published ones;
 - `mock-uniform`: a uniformly random valid action that never repeats one of the task's
-  failed attempts where the space allows (a stronger random baseline).
+  failed attempts where the space allows (a stronger random baseline);
+- `shortcut-<name>`: one of the environment's shortcut baselines (deepphy/envs/shortcuts.py),
+  a policy that understands nothing but exploits something (aim straight at the nearest
+  pig, cut the first rope); it may read privileged state.
 """
 
 from __future__ import annotations
 
+import asyncio
 from pathlib import Path
 
 from deepphy.envs import ActionSpace, get_spec
+from deepphy.envs import shortcuts
 from deepphy.models import ModelClient, ModelConfig, UnknownModel, client_from_config, load_models
 from deepphy.models.base import ModelRequest, ModelResponse, RequestContext
 from deepphy.models.limiter import Limiter
@@ -66,23 +71,57 @@ class UniformMockModel(MockModel):
     name = "mock-uniform"
 
 
+def shortcut_text(name: str, ctx: RequestContext) -> str:
+    """Shortcut baseline `name`'s whole reply to a request (WM: the action, nothing predicted)."""
+    spec = get_spec(ctx.env)
+    spec.load_package()
+    policy = shortcuts.shortcut_for(spec, name)
+    rng = seeded_rng("shortcut", name, ctx.seed, ctx.env, ctx.task_id, ctx.run, ctx.attempt, ctx.step)
+    view = shortcuts.context(spec, ctx.env_options, ctx.task_id, ActionSpace.from_json(ctx.action_space),
+                             ctx.earlier, ctx.tried, rng)
+    return mock_reply(ctx.format, policy.policy(view))
+
+
+class ShortcutModel(ModelClient):
+    """A shortcut baseline (`shortcut-<name>`): deterministic, in this process. It may replay
+    the attempt in a simulator, so it answers in a thread, never on the event loop."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    async def complete(self, request: ModelRequest) -> ModelResponse:
+        return ModelResponse(text=await asyncio.to_thread(shortcut_text, self.name, request.context))
+
+
 BASELINES: dict[str, type[ModelClient]] = {"mock": MockModel, "mock-uniform": UniformMockModel}
+
+
+def is_baseline(name: str) -> bool:
+    """A random or shortcut baseline: built in, answered in this process, no models-file entry."""
+    return name in BASELINES or shortcuts.is_shortcut(name)
 
 
 def endpoint_config(name: str, models_file: str | Path | None = None) -> ModelConfig | None:
     """The models-file entry of an endpoint; None for a baseline. UnknownModel otherwise."""
-    if name in BASELINES:
+    if is_baseline(name):
         return None
     models = load_models(models_file)
     if name not in models:
-        raise UnknownModel(name, [*BASELINES, *sorted(models)])
+        raise UnknownModel(name, [*BASELINES, "shortcut-<name>", *sorted(models)])
     return models[name]
 
 
-def make_agent(name: str, models_file: str | Path | None = None, limiter: Limiter | None = None) -> ModelClient:
+def make_agent(name: str, models_file: str | Path | None = None, limiter: Limiter | None = None,
+               env: str | None = None) -> ModelClient:
     """The client for `name`: a baseline, or the endpoint's HTTP client (its key read from
-    the environment; `limiter` the endpoint's shared limiter, None for an in-process one)."""
+    the environment; `limiter` the endpoint's shared limiter, None for an in-process one).
+    `env`: the environment it will play, where known (a shortcut must be one of its own:
+    `shortcuts.UnknownShortcut` otherwise)."""
     config = endpoint_config(name, models_file)
     if config is None:
+        if shortcuts.is_shortcut(name):
+            if env is not None:
+                shortcuts.shortcut_for(get_spec(env), name)
+            return ShortcutModel(name)
         return BASELINES[name]()
     return client_from_config(config, limiter=limiter)

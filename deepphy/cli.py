@@ -629,6 +629,7 @@ COMMANDS = {"run": cmd_run, "report": cmd_report, "leaderboard": cmd_leaderboard
 
 def main(argv: list[str] | None = None) -> int:
     from deepphy.envs import UnknownEnvironment
+    from deepphy.envs.shortcuts import UnknownShortcut
     from deepphy.local_ray import RayStartFailed
     from deepphy.models import AccessDenied, MissingKey, ModelsFileError, UnknownModel
     from deepphy.runner import ClusterUnavailable, ConfigError, quiet_environment
@@ -639,7 +640,7 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         return COMMANDS[args.command](args)
     except (UserError, ConfigError, RunDirError, UnknownEnvironment, UnknownModel, MissingKey, ModelsFileError,
-            ClusterUnavailable, RayStartFailed, AccessDenied) as e:
+            ClusterUnavailable, RayStartFailed, AccessDenied, UnknownShortcut) as e:
         print(f"deepphy: error: {one_line(str(e))}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into `head` and friends

@@ -98,7 +98,8 @@ async def run_attempt(
             temperature=config.temperature,
             max_tokens=config.max_tokens,
             context=RequestContext(
-                env=config.env, task_id=task.id, run=run, attempt=attempt, step=step, seed=config.seed,
+                env=config.env, env_options=config.env_options, task_id=task.id, run=run, attempt=attempt, step=step,
+                seed=config.seed,
                 format=config.format, action_space=observation.action_space.model_dump(mode="json"), tried=tried,
                 earlier=[p.action for p in recent],
             ),

@@ -238,7 +238,7 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
     runtime = runtime or RuntimeOptions()
     spec, tasks, k_max = resolve(config)
     endpoint = endpoint_config(config.model, runtime.models_file)
-    make_agent(config.model, runtime.models_file)  # a missing key fails here, before anything is written
+    make_agent(config.model, runtime.models_file, env=config.env)  # a missing key fails here, before anything is written
     store = RunStore.claim(out, config)  # another run's directory, or one in use: fails here
     try:
         existing = read_records(out)

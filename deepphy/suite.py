@@ -156,6 +156,8 @@ def plan(suite: Suite, root: str | Path, models: list[str] | None, models_file: 
     written): the root is new, empty or this suite's; each cell's options, tasks and
     model (its key included) are valid and its directory new or holding that config."""
     from deepphy.agents import endpoint_config, make_agent
+    from deepphy.envs import get_spec
+    from deepphy.envs.shortcuts import is_shortcut, shortcut_for
     from deepphy.runner import resolve
     from deepphy.runs.store import RunStore
 
@@ -180,6 +182,8 @@ def plan(suite: Suite, root: str | Path, models: list[str] | None, models_file: 
         make_agent(model, models_file)  # a missing key fails here
     for cell in wanted:
         resolve(cell.config)
+        if is_shortcut(cell.config.model):  # one of the cell's environment's own shortcuts
+            shortcut_for(get_spec(cell.config.env), cell.config.model)
         RunStore.check(root / cell.dir, cell.config)
     return wanted
 

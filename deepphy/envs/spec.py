@@ -47,6 +47,7 @@ class EnvSpec(BaseModel):
     max_steps: int = Field(ge=1)  # decisions per attempt (1 for in-advance planning)
     report: ReportSpec = ReportSpec()
     solver: str | None = None  # "module:function(argv) -> exit status" of `deepphy solve --env`
+    shortcuts: str | None = None  # "module:NAME" of its shortcut baselines (deepphy/envs/shortcuts.py)
     description: str = ""  # one line for `deepphy envs`
 
     def load_package(self) -> None:

@@ -25,6 +25,7 @@ class RequestContext(BaseModel):
     seed: int
     format: PromptFormat
     action_space: dict[str, Any]  # ActionSpace JSON (see ActionSpace.from_json)
+    env_options: dict[str, Any] = Field(default_factory=dict)  # the run's environment options
     tried: list[str] = Field(default_factory=list)  # actions of failed attempts of this task
     earlier: list[str] = Field(default_factory=list)  # actions of this attempt's earlier decisions
 

@@ -18,6 +18,7 @@ SPEC = EnvSpec(
     planning=Planning.IN_ADVANCE,
     max_attempts=10,
     max_steps=1,
+    shortcuts="deepphy.envs.iphyre.shortcuts:SHORTCUTS",
     description="40 games: remove gray blocks at chosen times so every red ball falls out",
 )
 

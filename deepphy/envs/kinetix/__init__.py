@@ -23,6 +23,7 @@ SPEC = EnvSpec(
     max_attempts=1,
     max_steps=MAX_DECISIONS,
     report=ReportSpec(step_noun="decision", group_noun="size", leaderboard_groups=True),
+    shortcuts="deepphy.envs.kinetix.shortcuts:SHORTCUTS",
     description="74 handcrafted levels (S, M, L): drive motors and thrusters so green touches blue",
 )
 

@@ -24,6 +24,7 @@ SPEC = EnvSpec(
     max_steps=1,
     report=ReportSpec(auccess=True, group_noun="setup"),
     solver="deepphy.envs.phyre.solve:main",
+    shortcuts="deepphy.envs.phyre.shortcuts:SHORTCUTS",
     description="the real PHYRE-B tasks on Box2D: place one red ball so the green object reaches its goal",
 )
 

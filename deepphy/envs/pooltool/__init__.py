@@ -19,6 +19,7 @@ SPEC = EnvSpec(
     max_attempts=1,  # one game per task
     max_steps=MAX_SHOTS,
     report=ReportSpec(step_checkpoints=(1, 3, 6, 9, 12, 15), step_noun="shot"),
+    shortcuts="deepphy.envs.pooltool.shortcuts:SHORTCUTS",
     description="100 seeded nine-ball racks: choose cue speed and strike spot, pot the 9-ball legally",
 )
 

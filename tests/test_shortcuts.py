@@ -1,0 +1,106 @@
+"""Shortcut baselines (deepphy/envs/shortcuts.py): declared per environment, evaluated as the
+agent `shortcut-<name>` through the same attempt protocol as any model, deterministic."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+from deepphy.agents import endpoint_config, is_baseline, make_agent
+from deepphy.config import RunConfig
+from deepphy.envs import get_spec
+from deepphy.envs.kinetix.space import KinetixSpace
+from deepphy.envs.shortcuts import ShortcutContext, UnknownShortcut, shortcut_for, shortcuts
+from deepphy.protocol import LocalEnv, MemoryArtifacts, run_episode
+
+# The cheap environments, played for real (Kinetix compiles JAX: its policy is checked on its space).
+PLAYED = ["phyre", "iphyre", "pooltool"]
+
+
+def play(env: str, agent: str, n_tasks: int = 2, attempts: int = 3):
+    spec = get_spec(env)
+    cls = spec.load()
+    options = cls.Options()
+    config = RunConfig(env=env, model=agent)
+    model = make_agent(agent, env=env)
+    out = []
+    for task in cls.tasks(options)[:n_tasks]:
+        records = asyncio.run(run_episode(spec, spec.load_prompt(), config, task, 0, min(attempts, spec.max_attempts),
+                                          LocalEnv(cls(options)), model, MemoryArtifacts()))
+        out.append(records)
+    return out
+
+
+def test_every_environment_declares_shortcuts_that_are_baselines_without_an_endpoint():
+    for name in ["phyre", "iphyre", "kinetix", "pooltool"]:
+        declared = shortcuts(get_spec(name))
+        assert declared, f"{name} declares no shortcut baseline"
+        for short in declared:
+            agent = f"shortcut-{short}"
+            assert is_baseline(agent) and endpoint_config(agent) is None
+            assert declared[short].exploits
+
+
+@pytest.mark.parametrize("env", PLAYED)
+def test_a_shortcut_plays_through_the_protocol_with_valid_actions_and_the_same_records_twice(env):
+    for short in shortcuts(get_spec(env)):
+        agent = f"shortcut-{short}"
+        first, second = play(env, agent), play(env, agent)
+        for records in first:
+            assert all(s.invalid_reason is None for r in records for s in r.steps), records[0].steps[0].raw_output
+        dump = lambda eps: [[(r.success, [s.raw_output for s in r.steps]) for r in rs] for rs in eps]  # noqa: E731
+        assert dump(first) == dump(second)
+
+
+def test_iphyre_all_at_once_removes_every_block_at_time_zero():
+    records = play("iphyre", "shortcut-all-at-once", n_tasks=3, attempts=1)
+    for (record,) in records:
+        plan = json.loads(record.steps[0].raw_output)
+        space = record.steps[0].action
+        assert [c["time"] for c in plan] == [0.0] * len(plan)
+        assert sorted(c["index"] for c in plan) == list(range(len(plan)))
+        assert [c["index"] for c in space["clicks"]] == list(range(len(plan)))
+
+
+def test_phyre_drop_on_green_never_repeats_a_failed_action_and_drops_above_the_green_object():
+    from deepphy.envs.phyre import data
+    from deepphy.envs.phyre.env import phyre_id
+    from deepphy.envs.phyre.space import PhyreSpace
+
+    space = PhyreSpace()
+    spec = get_spec("phyre")
+    cls = spec.load()
+    for records in play("phyre", "shortcut-drop-on-green", n_tasks=3, attempts=4):
+        texts = [r.steps[0].action_text for r in records]
+        assert len(set(texts)) == len(texts)
+        task = data.load_task(phyre_id(next(t for t in cls.tasks(cls.Options()) if t.id == records[0].task)))
+        green = task.bodies[task.body1]
+        for r in records:
+            cell = r.steps[0].action["cell"]
+            assert space.cell_centre(cell)[1] > green.y  # above it (y up)
+
+
+def test_kinetix_full_throttle_drives_every_motor_forward_and_every_thruster_on():
+    policy = shortcut_for(get_spec("kinetix"), "shortcut-full-throttle").policy
+    space = KinetixSpace(num_motors=3, num_thrusters=2)
+    ctx = ShortcutContext(spec=get_spec("kinetix"), options=None, task=None, action_space=space,  # type: ignore[arg-type]
+                          earlier=[], tried=[], rng=np.random.default_rng(0))
+    assert space.parse(policy(ctx)).motors == (1, 1, 1) and space.parse(policy(ctx)).thrusters == (1, 1)
+
+
+def test_a_shortcut_another_environment_declares_is_refused_in_one_line():
+    with pytest.raises(UnknownShortcut, match=r"kinetix has no shortcut baseline 'shortcut-drop-on-green' \(its shortcuts: shortcut-full-throttle\)"):
+        make_agent("shortcut-drop-on-green", env="kinetix")
+
+
+def test_the_cli_refuses_an_unknown_shortcut_before_ray_starts(deepphy_cmd, tmp_path):
+    proc = subprocess.run([*deepphy_cmd, "run", "--env", "iphyre", "--model", "shortcut-nope", "--out", str(tmp_path / "r")],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        "deepphy: error: iphyre has no shortcut baseline 'shortcut-nope' (its shortcuts: shortcut-all-at-once)"]
+    assert not (tmp_path / "r").exists()
