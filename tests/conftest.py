@@ -9,13 +9,18 @@ from pathlib import Path
 
 import pytest
 
+from deepphy.cache import cache_root
+
 # Before Ray or pygame are imported anywhere. Auth off: a purely local loopback cluster
 # that the CLI subprocesses of the tests join with --address.
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 os.environ.setdefault("RAY_AUTH_MODE", "disabled")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")  # see deepphy.runner.quiet_environment
-os.environ.setdefault("DEEPPHY_CACHE_DIR", os.path.join(tempfile.gettempdir(), "deepphy-test-cache"))
+# One compile cache: the one `make setup` warmed (python -m deepphy.warm_up), so a test run after
+# it compiles no kernel. Pinned here because some tests move HOME (pooltool writes its config
+# there), which would move a HOME-relative cache. Tests that need a cold cache make their own.
+os.environ["DEEPPHY_CACHE_DIR"] = str(cache_root())
 # Ray workers must import test-only packages (tests/toy_env) as the tests do.
 TESTS = os.path.dirname(os.path.abspath(__file__))
 os.environ["PYTHONPATH"] = os.pathsep.join(p for p in [TESTS, os.environ.get("PYTHONPATH", "")] if p)
@@ -28,6 +33,28 @@ TEST_DATA = Path(__file__).resolve().parent / "data"
 
 def data_file(name: str) -> Path:
     return TEST_DATA / name
+
+
+# Nothing under tests/ reads beside the repository (a clone with nothing beside it must pass):
+# every file this process opens or lists inside the repository's parent folder but outside the
+# repository is noted, and the session fails naming them. (Subprocesses are not watched here;
+# .ci/run runs the suite in a clone with nothing beside it, which catches those.)
+REPO = str(Path(__file__).resolve().parents[1])
+BESIDE = os.path.dirname(REPO) + os.sep
+READ_BESIDE: list[str] = []
+
+
+def _audit(event: str, args: tuple) -> None:
+    if event not in ("open", "os.listdir", "os.scandir") or not args or not isinstance(args[0], (str, bytes, os.PathLike)):
+        return
+    path = os.fsdecode(args[0])
+    if not os.path.isabs(path) or ".." in path:
+        path = os.path.abspath(path)
+    if path.startswith(BESIDE) and not (path == REPO or path.startswith(REPO + os.sep)):
+        READ_BESIDE.append(path)
+
+
+sys.addaudithook(_audit)
 
 
 @pytest.fixture(scope="session")
@@ -62,3 +89,8 @@ def pytest_sessionfinish(session, exitstatus):
     background = sys.modules.get("deepphy.play.background")
     if background is not None:
         background.wait(600)
+    if READ_BESIDE:
+        paths = sorted(set(READ_BESIDE))
+        print(f"\nthe tests read {len(paths)} path(s) beside the repository (a clone with nothing beside it "
+              f"would fail): {', '.join(paths[:10])}", file=sys.stderr)
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

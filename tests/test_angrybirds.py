@@ -8,7 +8,6 @@ import json
 import math
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -170,15 +169,14 @@ def test_parse_rejects_anything_else_with_a_reason(text, reason):
     "angle=1" + ".1" * 50_000,
     "shoot(" + "1," * 100_000 + ")",
 ])
+@pytest.mark.timeout(120)  # a hang guard (a regex blow-up takes hours); the speed is benchmarks/parsers.py's
 def test_parse_is_total_on_adversarial_replies(text):
-    """Any string gives an action or InvalidAction, quickly (no catastrophic backtracking)."""
-    t0 = time.perf_counter()
+    """Any string gives an action or InvalidAction (no catastrophic backtracking)."""
     try:
         action = SPACE.parse(text)
     except InvalidAction:
         action = None
     assert action is None or (0 <= action.angle <= 90 and 0 <= action.power <= 1)
-    assert time.perf_counter() - t0 < 5.0  # a generous bound: a regex blow-up takes minutes
 
 
 def test_sample_reference_reply_and_round_trip():

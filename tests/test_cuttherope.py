@@ -13,7 +13,6 @@ import os
 import re
 import subprocess
 import sys
-import time
 from collections import Counter
 
 import numpy as np
@@ -553,13 +552,13 @@ def test_parse_rejects_everything_else_with_a_reason(text, reason):
     "tap_air_cushion(1, " + "," * 300_000 + ")",
     ("cut_pin(1) " * 50_000),
 ])
-def test_parse_is_total_and_fast_on_adversarial_text(text):
-    start = time.perf_counter()
+@pytest.mark.timeout(120)  # a hang guard (backtracking takes hours); the speed is benchmarks/parsers.py's
+def test_parse_is_total_on_adversarial_text(text):
     try:
-        SPACE.parse(text)
+        action = SPACE.parse(text)
     except InvalidAction:
-        pass
-    assert time.perf_counter() - start < 1.0
+        action = None
+    assert action is None or SPACE.parse(SPACE.format(action)) == action
 
 
 def test_format_round_trips_and_sample_is_uniform_over_the_valid_actions():

