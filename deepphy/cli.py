@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 from pathlib import Path
@@ -586,6 +587,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     written = plot_all(reports, args.out, board)
     if not written:
         raise UserError("none of the figures applies to these run directories")
+    drawn = json.loads((Path(args.out) / "figures.json").read_text())
+    for note in (n for figure in drawn.values() if isinstance(figure, dict) for n in figure.get("notes", [])):
+        print(f"deepphy: note: {note}", file=sys.stderr)
     for path in written:
         print(path)
     return 0

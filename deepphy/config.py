@@ -2,13 +2,21 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from deepphy.chat import PromptFormat
 
 DEFAULT_OUT = "runs/demo"
+
+# Which prompts a run is given: "paper", information-equivalent to the DeepPHY paper's
+# (docs/comparability.md); "before-parity", deepphy's prompts before that (numeric state
+# the paper's never gave, no retry instructions): the value a run directory made then reads
+# as (its config.json has no `prompts`). Those runs are read (report, leaderboard, export),
+# never resumed: their prompts are no longer made.
+PromptSet = Literal["paper", "before-parity"]
+PROMPTS = "paper"
 
 
 class RunConfig(BaseModel):
@@ -27,6 +35,7 @@ class RunConfig(BaseModel):
     env_options: dict[str, Any] = Field(default_factory=dict)
     temperature: float = 0.1
     max_tokens: int = Field(1024, ge=1)
+    prompts: PromptSet = PROMPTS
 
     @field_validator("tasks")
     @classmethod

@@ -54,6 +54,7 @@ class SuiteEnv(BaseModel):
     tasks: list[str] | None = None
     limit: int | None = Field(None, ge=1)
     max_attempts: int | None = Field(None, ge=1)
+    runs: int | None = Field(None, ge=1, description="repetitions of this environment's cells; default: the suite's")
 
     @field_validator("axes")
     @classmethod
@@ -117,7 +118,8 @@ def cells(suite: Suite, models: list[str] | None = None) -> list[Cell]:
             for model in models or suite.models:
                 for fmt in suite.formats:
                     try:
-                        config = RunConfig(env=entry.env, model=model, format=fmt, runs=suite.runs, seed=suite.seed,
+                        config = RunConfig(env=entry.env, model=model, format=fmt, runs=entry.runs or suite.runs,
+                                           seed=suite.seed,
                                            tasks=entry.tasks, limit=entry.limit, max_attempts=entry.max_attempts,
                                            env_options=options)
                     except ValidationError as e:

@@ -40,7 +40,7 @@ def test_user_errors_are_one_line_and_exit_2(argv, message, tmp_path, capsys, mo
 
 
 def test_unreadable_run_dir_and_mismatched_resume_write_nothing(tmp_path, capsys):
-    (tmp_path / "config.json").write_text('{"env": "iphyre", "runs": 1}')
+    (tmp_path / "config.json").write_text('{"env": "iphyre", "runs": 1, "prompts": "paper"}')
     (tmp_path / ATTEMPTS).write_text("")
     before = sorted(p.name for p in tmp_path.iterdir())
     assert main(["run", "--out", str(tmp_path), "--runs", "2"]) == 2

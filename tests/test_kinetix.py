@@ -1,17 +1,15 @@
 """Kinetix on the real kinetix-env (no mocks).
 
-Caches (converted levels, JAX compilation cache) go to a directory under the system temp
-dir that is kept between test sessions, so only the first session pays for compiling.
-The fast tests compile the S size only; M and L known-good runs are marked slow.
+Caches (converted levels, JAX compilation cache) are the machine's, which `make setup` warmed
+(tests/conftest.py), so the tests load compiled functions instead of compiling them.
+The fast tests run the S size only; M and L known-good runs are marked slow.
 """
 
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -22,20 +20,6 @@ from deepphy.envs.kinetix.env import KinetixEnv, KinetixOptions
 from deepphy.envs.kinetix.space import KinetixAction, KinetixSpace
 
 ROOT = Path(__file__).resolve().parents[1]
-CACHE = Path(tempfile.gettempdir()) / "deepphy-test-cache"
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _cache_dir():
-    old = os.environ.get("DEEPPHY_CACHE_DIR")
-    os.environ["DEEPPHY_CACHE_DIR"] = str(CACHE)
-    yield
-    if old is None:
-        os.environ.pop("DEEPPHY_CACHE_DIR", None)
-    else:
-        os.environ["DEEPPHY_CACHE_DIR"] = old
-
-
 def task(tid: str):
     return next(t for t in KinetixEnv.tasks(KinetixOptions()) if t.id == tid)
 
@@ -52,7 +36,7 @@ def test_registered_with_74_levels_by_size():
     ids = [t.id for t in tasks]
     assert len(set(ids)) == 74
     assert all(t.id.replace("_", "").isalnum() and t.id[0] in "sml" and t.id[1] == "_" for t in tasks)
-    assert tasks[0].id == "s_h0_weak_thrust" and tasks[0].params == {"level": "s/h0_weak_thrust"}
+    assert tasks[0].id == "s_h0_weak_thrust" and tasks[0].params == {"level": "s/h0_weak_thrust", "state_text": False}
     only_m = cls.tasks(cls.Options(sizes=["M"]))
     assert len(only_m) == 24 and {t.group for t in only_m} == {"M"}
     assert ids == [t.id for t in cls.tasks(cls.Options())]  # stable order
@@ -173,7 +157,9 @@ def test_observation_with_and_without_annotation():
     obs = env.reset(task("m_h7_car_flip"))
     assert [i.name for i in obs.images] == ["scene", "annotated"]
     assert obs.action_space == KinetixSpace(num_motors=1, num_thrusters=2)
-    assert "[M0, T0, T1]" in obs.text and "Goal distance" in obs.text and "Decision 1 of 16" in obs.text
+    assert "[M0, T0, T1]" in obs.text and "Goal distance" in obs.text and "Decision" not in obs.text
+    rich = KinetixEnv(KinetixOptions(state_text=True)).reset(task("m_h7_car_flip"))
+    assert "Decision 1 of 16" in rich.text and "m_h7_car_flip" in rich.text  # the level's name: a hint
     plain = KinetixEnv(KinetixOptions(annotate=False)).reset(task("m_h7_car_flip"))
     assert [i.name for i in plain.images] == ["scene"]
     assert np.array_equal(plain.images[0].to_array(), obs.images[0].to_array())
@@ -195,13 +181,15 @@ def test_prompts_state_legend_syntax_and_example():
     from deepphy.prompts import PastStep, PromptFormat, build_messages
 
     prompt = get_spec("kinetix").load_prompt()
-    for annotate in (True, False):
-        t = task("m_h7_car_flip")
-        obs = KinetixEnv(KinetixOptions(annotate=annotate)).reset(t)
+    for annotate, state_text in ((True, False), (False, False), (True, True)):
+        options = KinetixOptions(annotate=annotate, state_text=state_text)
+        t = next(x for x in KinetixEnv.tasks(options) if x.id == "m_h7_car_flip")
+        obs = KinetixEnv(options).reset(t)
         for fmt in PromptFormat:
             msgs = build_messages(prompt, fmt, t, obs, [], [PastStep(step=1, action="[1, 0, 0]", feedback="goal distance 10 px")])
             system = msgs[0].text
-            assert "[M0, T0, T1]" in system and "green" in system and "red" in system and "16 decisions" in system
+            assert "[M0, T0, T1]" in system and "green" in system and "red" in system
+            assert ("16 decisions" in system and "car_flip" in system) == state_text  # not the paper's
             assert ("yellow label" in system) == annotate
             assert obs.action_space.parse(prompt.example(obs)) is not None
             assert "goal distance 10 px" in msgs[1].text

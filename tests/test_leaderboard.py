@@ -42,7 +42,7 @@ def test_rows_are_settings_and_columns_the_environments_headlines(root):
     assert [board.row_label(i) for i in range(len(board.rows))] == ["gpt-4o VLA", "mock VLA", "mock WM"]
     assert [g.title for g in board.groups] == ["Angry Birds", "Kinetix", "Kinetix annotate=False", "PHYRE-B"]
     assert [[c.header for c in g.columns] for g in board.groups] == [
-        ["Succ", "Stars"], ["S", "M", "L", "Succ"], ["S", "M", "L", "Succ"], ["Succ@10", "AUCCESS"]]
+        ["Succ", "Stars"], ["S", "M", "L", "Succ"], ["S", "M", "L", "Succ"], ["Succ@10", "Pass@5", "AUCCESS"]]
     # each figure is the report's of that directory
     for (r, g), cells in board.cells.items():
         report = report_of(cells[0].run_dir)
@@ -50,6 +50,8 @@ def test_rows_are_settings_and_columns_the_environments_headlines(root):
         k = report["max_attempts"]
         expected = {"Succ": mean["success_at"][0], f"Succ@{k}": mean["success_at"][k - 1],
                     "AUCCESS": mean.get("auccess"), "Stars": (mean.get("stars") or {}).get("total"),
+                    # the paper's Pass@5 needs 5 runs: "-" with fewer, never a number made up
+                    "Pass@5": report["overall"]["pass_at"][4] if report["runs"] >= 5 else None,
                     **{size: sec["mean"]["success_at"][0] for size, sec in report.get("groups", {}).items()}}
         for column, cell in zip(board.groups[g].columns, cells):
             assert cell.mean == pytest.approx(expected[column.header]), (cells[0].run_dir, column.header)
@@ -63,6 +65,9 @@ def test_the_best_of_each_column_is_marked(root):
     for g, group in enumerate(board.groups):
         for c in range(len(group.columns)):
             cells = [board.cells[(r, g)][c] for r in range(len(board.rows)) if (r, g) in board.cells]
+            cells = [x for x in cells if x.mean is not None]  # "-": no figure to rank
+            if not cells:
+                continue
             top = max(x.mean for x in cells)
             differ = len({x.mean for x in cells}) > 1  # all equal: none marked
             assert [x.best for x in cells] == [differ and x.mean == top for x in cells]
@@ -92,14 +97,14 @@ def test_two_runs_of_one_cell_are_refused(root, tmp_path):
 def test_cli_takes_a_root_and_plain_run_directories_of_different_environments(root, capsys):
     assert main(["leaderboard", str(root), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
-    assert len(data["rows"]) == 3 and len(data["columns"]) == 12
+    assert len(data["rows"]) == 3 and len(data["columns"]) == 13
     # plain run directories of different environments: `report` refuses them, the leaderboard takes them
     dirs = [str(root / "mock" / "phyre" / "vla"), str(root / "gpt-4o" / "angrybirds" / "vla")]
     assert main(["report", *dirs]) == 2
     assert "one environment" in capsys.readouterr().err
     assert main(["leaderboard", *dirs, "--csv"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0] == "setting,Angry Birds Succ,Angry Birds Stars,PHYRE-B Succ@10,PHYRE-B AUCCESS"
+    assert lines[0] == "setting,Angry Birds Succ,Angry Birds Stars,PHYRE-B Succ@10,PHYRE-B Pass@5,PHYRE-B AUCCESS"
     assert lines[1].startswith("mock VLA,-,-,") and lines[2].startswith("gpt-4o VLA,")
     assert render_csv(_board(dirs)).splitlines()[0] == lines[0]
 
@@ -166,10 +171,11 @@ def test_plot_of_a_suite_root_draws_the_leaderboard(root, tmp_path, capsys):
                 assert bars["best"][k] == cell["best"]
                 assert bars["missing"][k] == (cell["text"] == "-")
     phyre = drawn["panels"][-1]["bars"]
-    assert phyre[0]["row"] == "gpt-4o VLA" and phyre[0]["unfinished"][0] and phyre[0]["mean"] == [None, None]
+    assert phyre[0]["row"] == "gpt-4o VLA" and phyre[0]["unfinished"][0] and phyre[0]["mean"] == [None, None, None]
     iphyre = drawn["panels"][2]["bars"]  # the cell the manifest lists and nobody started
-    assert [(b["unfinished"], b["missing"]) for b in iphyre] == [([None], [True]), (["0/12"], [False]),
-                                                                  ([None], [True])]
+    assert [(b["unfinished"], b["missing"]) for b in iphyre] == [([None, None], [True, True]),
+                                                                  (["0/12", "0/12"], [False, False]),
+                                                                  ([None, None], [True, True])]
 
 
 def test_leaderboard_figure_marks_what_the_table_marks(root):
@@ -182,5 +188,5 @@ def test_leaderboard_figure_marks_what_the_table_marks(root):
     drawn = draw_leaderboard(fig, board)
     stars_drawn = sum(t.get_text() == BEST_MARK for ax in fig.axes for t in ax.texts)
     assert stars_drawn == sum(c.best for cells in board.cells.values() for c in cells) > 0
-    no_run = sum(t.get_text() == "no run" for ax in fig.axes for t in ax.texts)
+    no_run = sum(t.get_text() in ("no run", "n/a") for ax in fig.axes for t in ax.texts)  # n/a: Pass@5 of 3 runs
     assert no_run == sum(m for p in drawn["panels"] for b in p["bars"] for m in b["missing"]) > 0

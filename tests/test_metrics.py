@@ -27,6 +27,30 @@ def episode_records(task, run, solved_at=None, k=10, invalid_at=(), group=""):
     ]
 
 
+def test_pass_at_k_is_the_papers_solved_in_at_least_one_of_k_runs():
+    """Hand-made: task a solved in 1 of 3 runs (at attempt 4), b in all 3, c in none. Pass@k as the
+    paper's tables compute it, with the unbiased estimator 1 - C(n-c, k)/C(n, k)."""
+    records = (episode_records("a", 0, None) + episode_records("a", 1, 4) + episode_records("a", 2, None)
+               + [r for run in range(3) for r in episode_records("b", run, 1)]
+               + [r for run in range(3) for r in episode_records("c", run, None)])
+    eps = F.episodes(records, 10)
+    assert F.pass_at(eps, 1, 3, 3) == pytest.approx((1 / 3 + 1 + 0) / 3)  # a: Pass@1 = 1/3
+    assert F.pass_at(eps, 2, 3, 3) == pytest.approx((1 - 1 / 3 + 1) / 3)  # a: 1 - C(2,2)/C(3,2) = 2/3
+    assert F.pass_at(eps, 3, 3, 3) == pytest.approx(2 / 3)  # a and b: solved in one of the 3 runs
+    assert F.pass_at(eps, 4, 3, 3) is None  # fewer runs than k: no number invented
+    # not Att.k: task a's success needed 4 attempts, so Att.1 misses it in every run
+    assert F.success_at([e for e in eps if e.run == 1], 1, 3) == pytest.approx(1 / 3)
+    tasks = [Task(env="iphyre", id=t) for t in "abc"]
+    report = build_report(RunConfig(env="iphyre", runs=3), tasks, records, k_max=10)
+    assert report["overall"]["pass_at"] == pytest.approx([4 / 9, 5 / 9, 2 / 3])
+    header, rows = table([report])
+    assert header[header.index("Att.10") + 2:][:3] == ["Pass@1", "Pass@2", "Pass@3"]  # beside Att.k, after AvgAtt
+    assert rows[0][header.index("Pass@1"):header.index("Pass@3") + 1] == ["44.4", "55.6", "66.7"]
+    text = render_text(report)
+    assert "Pass@k: tasks solved within the attempt budget in at least one of k runs (%, the paper's Pass@k)" in text
+    assert "the paper's set-up" in text.splitlines()[0]
+
+
 def test_success_at_k_is_cumulative_and_hand_computed():
     # 4 tasks: solved at 1, at 3, at 10, never.
     records = (episode_records("a", 0, 1) + episode_records("b", 0, 3) + episode_records("c", 0, 10)

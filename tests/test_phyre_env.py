@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
 
@@ -58,25 +57,33 @@ def test_options_select_setup_split_and_fold():
     ("grid8", "grid", "Cell: <1..64>, Radius: <1..8>"),
     ("continuous", "axes", "X: <0..1>, Y: <0..1>, R: <0..1>"),
 ])
-def test_observation_images_and_prompt(default_tasks, actions, second, syntax):
-    task = default_tasks["cross_00003-004"]
-    env = PhyreEnv(PhyreOptions(actions=actions))
-    obs = env.reset(task)
-    assert [i.name for i in obs.images] == ["scene", second]
-    scene, overlay = (i.to_array() for i in obs.images)
-    assert scene.shape == overlay.shape == (512, 512, 3) and (scene != overlay).any()
-    assert obs.text.startswith("Goal: Make sure the green") and task.params["phyre_id"] in obs.text
-    for fmt in PromptFormat:
-        text = build_messages(PhyreEnv.spec.load_prompt(), fmt, task, obs, [])[0].text
-        assert syntax in text and "3 seconds" in text and "16.7 seconds" in text
-    if actions == "grid5":
-        assert "1 = 2 px, 2 = 10 px, 3 = 17 px, 4 = 24 px, 5 = 32 px" in text and "TOP-LEFT" in text
+def test_observation_images_and_prompt(actions, second, syntax):
+    for state_text in (False, True):
+        options = PhyreOptions(actions=actions, state_text=state_text)
+        task = next(t for t in PhyreEnv.tasks(options) if t.id == "cross_00003-004")
+        env = PhyreEnv(options)
+        obs = env.reset(task)
+        assert [i.name for i in obs.images] == ["scene", second]
+        scene, overlay = (i.to_array() for i in obs.images)
+        assert scene.shape == overlay.shape == (512, 512, 3) and (scene != overlay).any()
+        rich = state_text or actions == "continuous"  # the continuous space is a departure of its own
+        if state_text:  # PHYRE's own sentence, its time and the task's id (a hint at its template)
+            assert obs.text.startswith("Goal: Make sure the green") and task.params["phyre_id"] in obs.text
+        else:  # the paper's: which objects must touch
+            assert obs.text == "Goal: the green bar must end up touching the purple bar." and "000" not in obs.text
+        for fmt in PromptFormat:
+            text = build_messages(PhyreEnv.spec.load_prompt(), fmt, task, obs, [])[0].text
+            assert syntax in text and ("3 seconds" in text and "16.7 seconds" in text) == rich
+        if actions == "grid5" and state_text:
+            assert "1 = 2 px, 2 = 10 px, 3 = 17 px, 4 = 24 px, 5 = 32 px" in text and "TOP-LEFT" in text
+        if actions == "grid5" and not state_text:  # the paper's anchors: shares of the image's width
+            assert "about\n1/128 of the image's width" in text and "about 1/8 of it" in text and " px" not in text
 
 
 def test_attempts_reproduce_real_phyre(default_tasks):
     ground_truth_id = sorted(GROUND_TRUTH["outcomes"])[0]
     task = default_tasks[task_id("within", ground_truth_id)]
-    env = PhyreEnv()
+    env = PhyreEnv(PhyreOptions(state_text=True))  # with the words of what happened
     env.reset(task)
     statuses = GROUND_TRUTH["outcomes"][ground_truth_id]
 
@@ -94,6 +101,13 @@ def test_attempts_reproduce_real_phyre(default_tasks):
     assert bad.done and not bad.success and bad.invalid_reason and not bad.key_frames
     miss = env.step(grid_action(-1))
     assert miss.done and not miss.success and miss.invalid_reason is None and miss.feedback.startswith("not solved")
+    # the paper's history: "failed", or "invalid: out of bounds or overlapping", and the key frames
+    plain = PhyreEnv()
+    plain.reset(task)
+    assert plain.step(grid_action(-1)).feedback == "" and plain.step(grid_action(1)).feedback == ""
+    invalid = plain.step(grid_action(0))
+    assert invalid.invalid_reason == "the ball overlaps an object or is not wholly inside the scene"
+    assert invalid.info["placement"] == bad.invalid_reason  # where, for the record
 
 
 def test_continuous_attempt_and_bad_task(default_tasks):

@@ -1,8 +1,8 @@
 """Pooltool nine-ball on the real pooltool-billiards package (no mocks).
 
 pooltool writes ~/.config/pooltool at import, so HOME points at a temporary directory
-while it is imported here and in the subprocesses. The numba cache stays shared
-(DEEPPHY_CACHE_DIR), so kernels compile once per machine, not once per test run.
+while it is imported here and in the subprocesses. The numba cache stays the machine's
+(DEEPPHY_CACHE_DIR, pinned by tests/conftest.py), so kernels compile once per machine.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from deepphy.envs import ActionSpace, InvalidAction, Planning, Task, get_env_class
-from deepphy.envs.pooltool.env import PooltoolEnv
+from deepphy.envs.pooltool.env import PooltoolEnv, PooltoolOptions
 from deepphy.envs.pooltool.space import ACTIONS, SPOT_OFFSETS, SPOTS, PoolShot, PoolSpace
 
 REPO = Path(__file__).resolve().parents[1]
@@ -55,7 +55,6 @@ def home(tmp_path_factory):
     """A throwaway HOME for pooltool's config files; pooltool imported under it."""
     path = tmp_path_factory.mktemp("home")
     with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("DEEPPHY_CACHE_DIR", os.environ.get("DEEPPHY_CACHE_DIR") or str(Path("~/.cache/deepphy").expanduser()))
         mp.setenv("HOME", str(path))
         from deepphy.envs.pooltool.sim import _engine
 
@@ -63,9 +62,14 @@ def home(tmp_path_factory):
     yield path
 
 
+# Most tests play pooltool's nine-ball rules with the text that describes them (both opt-in
+# departures from the paper's set-up, which plays the reference rules and shows the table only)
+NINEBALL = PooltoolOptions(rules="nineball", state_text=True)
+
+
 @pytest.fixture(scope="module")
 def env(home):
-    yield PooltoolEnv()
+    yield PooltoolEnv(NINEBALL)
 
 
 def task(k: int) -> Task:
@@ -210,6 +214,32 @@ def test_reset_observation_and_render(env):
         assert "Strikespot" in msgs[0].text and len(msgs[1].images) == 1
 
 
+def test_by_default_the_observation_is_the_papers_the_table_alone(home):
+    """The paper's Pooltool prompt: the table from above, no text, nothing drawn on it, and no
+    history of shots; the reference rules."""
+    plain = PooltoolEnv()
+    assert plain.options.rules == "reference" and plain.options.departures_from_paper({}) == []
+    tasks = PooltoolEnv.tasks(plain.options)
+    obs = plain.reset(tasks[0])
+    assert obs.text == "" and [i.name for i in obs.images] == ["table"]
+    rich = PooltoolEnv(PooltoolOptions(state_text=True))
+    annotated = rich.reset(PooltoolEnv.tasks(rich.options)[0])
+    assert "Balls on the table" in annotated.text
+    # the same table; the richer image circles the target and draws the cue's line to it
+    assert obs.images[0].to_array().shape == annotated.images[0].to_array().shape
+    assert (obs.images[0].to_array() != annotated.images[0].to_array()).any()
+    from deepphy.prompts import PromptFormat, build_messages
+
+    first = plain.step(PoolSpace().parse("Speed: Low, Strikespot: middle-centre"))
+    from deepphy.prompts.base import PastStep
+
+    earlier = [PastStep(step=1, action="Speed: Low, Strikespot: middle-centre", feedback=first.feedback,
+                        frame=obs.images[0])]
+    msgs = build_messages(PooltoolEnv.spec.load_prompt(), PromptFormat.VLA, tasks[0], first.observation, [], earlier)
+    assert "earlier decisions" not in msgs[1].text and len(msgs[1].images) == 1  # no history of shots
+    assert "m/s" not in msgs[0].text and "15" not in msgs[0].text and "aimed" not in msgs[0].text
+
+
 def test_known_sequence_pots_the_nine_legally(env):
     k, actions = WIN_IN_7
     _, results = play(env, k, actions)
@@ -269,7 +299,8 @@ def test_same_rack_and_actions_identical_across_processes(env, home):
         import json, sys
         sys.path.insert(0, {str(REPO / 'tests')!r})
         from test_pooltool import PooltoolEnv, _summary, FIFTEEN
-        print(json.dumps(_summary(PooltoolEnv(), 0, FIFTEEN)))
+        from test_pooltool import NINEBALL
+        print(json.dumps(_summary(PooltoolEnv(NINEBALL), 0, FIFTEEN)))
         """
     )
     outs = []

@@ -15,7 +15,7 @@ import yaml
 
 from deepphy.cli import main
 from deepphy.config import RuntimeOptions
-from deepphy.metrics.report import report_of
+from deepphy.metrics.report import departures, report_of
 from deepphy.runner import evaluate
 from deepphy.runs.store import ATTEMPTS, read_config, read_records
 from deepphy.suite import MANIFEST, Suite, SuiteError, cells, load_suite, plan, read_manifest, run_suite
@@ -35,12 +35,18 @@ def views(path):
 
 
 def test_the_paper_suite_is_the_reference_grid():
+    """The paper's set-up: its prompts and options, PHYRE with the 5 runs its Pass@5 needs, and
+    the reference rules of Pooltool."""
     suite = load_suite("paper")
     grid = cells(suite, ["mock", "gpt-4o"])
-    settings = ["phyre", "iphyre", "kinetix-annotate=true", "kinetix-annotate=false", "pooltool", "angrybirds",
-                "cuttherope"]
+    settings = ["phyre", "iphyre", "kinetix-annotate=true", "kinetix-annotate=false", "pooltool-rules=reference",
+                "angrybirds", "cuttherope"]
     assert [c.dir for c in grid] == [f"{m}/{s}/{f}" for s in settings for m in ("mock", "gpt-4o") for f in ("vla", "wm")]
-    assert {(c.config.runs, c.config.seed, c.config.tasks, c.config.limit) for c in grid} == {(3, 0, None, None)}
+    assert {(c.config.runs, c.config.seed, c.config.tasks, c.config.limit) for c in grid if c.config.env != "phyre"} == {
+        (3, 0, None, None)}
+    assert {c.config.runs for c in grid if c.config.env == "phyre"} == {5}
+    assert {c.config.prompts for c in grid} == {"paper"}
+    assert all(departures(c.config) == [] for c in grid)
     assert [c.config.env_options for c in grid if c.config.env == "kinetix"][::4] == [{"annotate": True},
                                                                                      {"annotate": False}]
     assert [c.dir for c in cells(suite)][:2] == ["mock/phyre/vla", "mock/phyre/wm"]  # the suite's default models
@@ -101,9 +107,10 @@ def test_leaderboard_of_the_root_has_a_row_per_setting_and_a_group_per_environme
     assert main(["leaderboard", str(done), "--json"]) == 0
     board = json.loads(capsys.readouterr().out)
     assert [(r["model"], r["format"]) for r in board["rows"]] == [("mock", "vla"), ("mock", "wm")]
-    assert [c["title"] for c in board["columns"]] == ["I-PHYRE", "PHYRE-B", "PHYRE-B"]
+    assert [(c["title"], c["header"]) for c in board["columns"]] == [
+        ("I-PHYRE", "Succ@10"), ("I-PHYRE", "Pass@3"), ("PHYRE-B", "Succ@10"), ("PHYRE-B", "Pass@5"), ("PHYRE-B", "AUCCESS")]
     phyre_vla = report_of(done / "mock/phyre/vla")["overall"]["mean"]
-    assert board["rows"][0]["cells"][1]["mean"] == phyre_vla["success_at"][9]
+    assert board["rows"][0]["cells"][2]["mean"] == phyre_vla["success_at"][9]
 
 
 def test_running_a_complete_suite_again_adds_nothing_and_starts_no_ray(done, monkeypatch):
@@ -186,7 +193,7 @@ def test_leaderboard_of_a_suite_shows_cells_not_started_as_unfinished(done, tmp_
     (root / MANIFEST).write_bytes((done / MANIFEST).read_bytes())  # the suite, no cell run yet
     assert main(["leaderboard", str(root), "--csv"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[1:3] == ["mock VLA,unfinished 0/2,unfinished 0/2,", "mock WM,unfinished 0/2,unfinished 0/2,"]
+    assert lines[1:3] == ["mock VLA,unfinished 0/2,,unfinished 0/2,,", "mock WM,unfinished 0/2,,unfinished 0/2,,"]
 
 
 def test_plot_of_a_suite_root_draws_every_environment(done, tmp_path, capsys):

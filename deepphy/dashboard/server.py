@@ -348,7 +348,7 @@ def live_only_view(ray_id: str, snap: dict[str, Any]) -> dict[str, Any]:
 
     config = snap.get("config") or {}
     label = setting({"model": config.get("model", "?"), "format": config.get("format", "?"),
-                     "env_options": config.get("env_options", {})})
+                     "env_options": config.get("env_options", {}), "prompts": config.get("prompts", "before-parity")})
     done, total = snap.get("episodes_done", 0), snap.get("episodes_total", 0)
     return {
         "id": f"ray-{ray_id}", "path": snap.get("run_dir", ""), "name": ray_id, "label": label,

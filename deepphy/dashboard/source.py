@@ -175,7 +175,7 @@ class RunSource:
     @property
     def label(self) -> str:
         c = self.config
-        return setting({"model": c.model, "format": c.format.value, "env_options": c.env_options})
+        return setting({"model": c.model, "format": c.format.value, "env_options": c.env_options, "prompts": c.prompts})
 
     @property
     def offset(self) -> int:

@@ -195,9 +195,37 @@ class StepResult(BaseModel):
 
 
 class EnvOptions(BaseModel):
-    """Options of an environment, set from the run config. Subclass to add fields."""
+    """Options of an environment, set from the run config. Subclass to add fields.
+
+    By default an environment shows a model the information the DeepPHY paper's prompts
+    gave it, no more, no less (docs/comparability.md): images, labels, counts and rules, no
+    numeric state. `state_text=true` is the one opt-in departure every environment shares:
+    the richer text deepphy gave before (positions, velocities, distances, physical
+    constants, the level's name), a setting of its own in every report, never mixed with
+    default rows."""
 
     model_config = ConfigDict(extra="forbid")
+
+    state_text: bool = False
+
+    # The value the paper used, per option whose other values depart from its set-up (a
+    # subclass adds its own). Options not named here (a task subset, an ablation the paper
+    # ran itself, an image size) do not depart from it.
+    PAPER: ClassVar[dict[str, Any]] = {"state_text": False}
+
+    @classmethod
+    def departures_from_paper(cls, options: dict[str, Any]) -> list[str]:
+        """`key=value` for every option of `options` (as a run's config holds them) set
+        otherwise than the paper's set-up; empty: the paper's."""
+        paper: dict[str, Any] = {}
+        for klass in reversed(cls.__mro__):
+            paper.update(getattr(klass, "PAPER", {}))
+        out = []
+        for key, value in paper.items():
+            given = options.get(key, cls.model_fields[key].default)
+            if given != value:
+                out.append(f"{key}={given}")
+        return out
 
 
 class Environment(ABC):

@@ -33,6 +33,7 @@ class ReportSpec(BaseModel):
     auccess: bool = False  # PHYRE's AUCCESS (invalid attempts not counted)
     stars: bool = False  # the games' stars
     leaderboard_groups: bool = False  # the leaderboard shows success per task group too (Kinetix S/M/L)
+    pass_k: int | None = None  # the paper's headline Pass@k (PHYRE 5, I-PHYRE 3): leaderboard, VLA-vs-WM figure
 
 
 class EnvSpec(BaseModel):

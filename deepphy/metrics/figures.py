@@ -91,9 +91,26 @@ def totals(eps: Sequence[Episode]) -> dict[str, float]:
 
 
 def success_at(eps: Sequence[Episode], k: int, n_tasks: int | None = None) -> float:
-    """Fraction of tasks solved within k attempts (cumulative; the paper's Att. k / Pass@k)."""
+    """Fraction of tasks solved within k attempts (cumulative; the paper's Att. k)."""
     n = n_tasks if n_tasks is not None else len(eps)
     return sum(1 for e in eps if e.solved_at is not None and e.solved_at <= k) / n if n else 0.0
+
+
+def pass_at(eps: Sequence[Episode], k: int, runs: int, n_tasks: int) -> float | None:
+    """The paper's Pass@k, as its tables compute it: the share of tasks solved within the
+    attempt budget in at least one of k independent runs (not "within k attempts", which
+    is Att. k; shared/notes/paper-prompts.md gives the evidence). With n >= k runs of each
+    task, c of them solved, the unbiased estimator 1 - C(n - c, k) / C(n, k) per task,
+    averaged over the tasks. None when there are fewer runs than k: no number is invented.
+    An unfinished episode counts as unsolved, as it does for Att. k."""
+    if k > runs or not n_tasks:
+        return None
+    solved: dict[str, int] = defaultdict(int)
+    for e in eps:
+        if e.solved and e.run < runs:
+            solved[e.task] += 1
+    total = math.comb(runs, k)
+    return sum(1 - math.comb(runs - c, k) / total for c in solved.values()) / n_tasks
 
 
 def success_within_steps(eps: Sequence[Episode], k: int, n_tasks: int | None = None) -> float:

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any, Callable, Collection, Sequence
 
 from deepphy.envs import get_spec, specs
-from deepphy.metrics.report import LATEX_PREAMBLE, _count, _pct, latex_escape, mixed_task_sets
+from deepphy.metrics.report import LATEX_PREAMBLE, _count, _pct, latex_escape, mixed_task_sets, options_of, paper_setting
 
 BEST = "*"  # after the best value of a column (text, Markdown, CSV); LaTeX sets it in bold
 
@@ -98,6 +98,12 @@ def headline_columns(report: dict[str, Any]) -> list[Column]:
                                   lambda r, g=g: (r["groups"][g]["mean"]["success_at"][k - 1],
                                                   r["groups"][g]["std"]["success_at"][k - 1])))
     columns.append(Column(*succ, lambda r: _overall(r, "success_at", k - 1)))
+    if spec.report.pass_k:
+        p = spec.report.pass_k
+        columns.append(Column(
+            f"Pass@{p}", f"Pass@{p}: tasks solved within the attempt budget in at least one of {p} runs (%; the paper's "
+            f"Pass@{p}; - with fewer than {p} runs)",
+            lambda r: (r["overall"].get("pass_at", [])[p - 1] if len(r["overall"].get("pass_at", [])) >= p else None, None)))
     if spec.report.auccess:
         columns.append(Column("AUCCESS", "AUCCESS: PHYRE's area under the success curve (%)",
                               lambda r: _overall(r, "auccess")))
@@ -124,10 +130,10 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
     where: dict[tuple[int, int], str | None] = {}
     cells: dict[tuple[int, int], list[Cell]] = {}
     for report, run_dir in zip(reports, run_dirs):
-        gkey = (report["env"], json.dumps(report["env_options"], sort_keys=True))
+        options = options_of(report)
+        gkey = (report["env"], json.dumps(options, sort_keys=True))
         if gkey not in groups:
-            groups[gkey] = Group(report["env"], report["env_options"],
-                                 _setting_title(report["env"], report["env_options"]), headline_columns(report))
+            groups[gkey] = Group(report["env"], options, _setting_title(report["env"], options), headline_columns(report))
         group = groups[gkey]
         g = list(groups).index(gkey)
         r = rows.setdefault((report["model"], report["format"]), len(rows))
@@ -157,6 +163,8 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
                 for x in scored:
                     x.best = x.mean == top
     notes = [f"{group.title}: {note}" for group in groups.values() if (note := mixed_task_sets(group.reports))]
+    notes += [f"{group.title}: {paper_setting(group.reports[0])}" for group in groups.values()
+              if paper_setting(group.reports[0]) != paper_setting({"departures": []})]
     # columns in the registry's order of environments, the default options first; rows as given
     envs, keys = list(specs()), list(groups)
     by_column = sorted(range(len(groups)), key=lambda g: (envs.index(keys[g][0]), keys[g][1] != "{}", keys[g][1]))
@@ -203,7 +211,8 @@ def _flat_header(board: Leaderboard) -> list[str]:
 
 def _key_line(board: Leaderboard) -> str:
     return " · ".join([*board.keys(), f"{BEST}: best of the column", "values: mean±std over runs",
-                       "unfinished d/t: episodes complete, not averaged in"])
+                       "unfinished d/t: episodes complete, not averaged in",
+                       "settings: the paper's set-up unless a note says how one departs from it"])
 
 
 def render_text(board: Leaderboard) -> str:
@@ -280,7 +289,8 @@ def render_latex(board: Leaderboard) -> str:
         f"% deepphy leaderboard --latex; preamble: {LATEX_PREAMBLE}",
         r"\begin{table*}[htbp]",
         r"\centering",
-        r"\caption{" + latex_escape(_key_line(board).replace(f"{BEST}: best", "bold: best")) + "}",
+        r"\caption{" + latex_escape(" · ".join([_key_line(board).replace(f"{BEST}: best", "bold: best"),
+                                                *(f"note: {n}" for n in board.notes)])) + "}",
         r"\label{tab:deepphy-leaderboard}",
         r"\resizebox{\ifdim\width>\linewidth\linewidth\else\width\fi}{!}{%",
         r"\begin{tabular}{l" + "r" * n + "}",

@@ -93,12 +93,22 @@ def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int,
         for r in range(runs)
     ]
     mean, std = _mean_std(per_run)
-    return {"tasks": len(tasks), "per_run": per_run, "mean": mean, "std": std}
+    # Across runs, not per run: Pass@k for k = 1..runs (the paper's tables' Pass@K)
+    pass_at = [F.pass_at(eps, k, runs, len(tasks)) for k in range(1, runs + 1)]
+    return {"tasks": len(tasks), "per_run": per_run, "mean": mean, "std": std, "pass_at": pass_at}
 
 
 def task_set_digest(tasks: Sequence[Task]) -> str:
     """Equal for two runs exactly when they evaluate the same tasks (in any order)."""
     return hashlib.sha256("\n".join(sorted(t.id for t in tasks)).encode()).hexdigest()[:16]
+
+
+def departures(config: RunConfig) -> list[str]:
+    """How a run's set-up departs from the paper's (docs/comparability.md): its prompts and
+    the environment options set otherwise than the paper did. Empty: the paper's set-up."""
+    cls = get_spec(config.env).load()
+    out = [] if config.prompts == "paper" else [f"prompts={config.prompts}"]
+    return out + cls.Options.departures_from_paper(config.env_options)
 
 
 def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[AttemptRecord], k_max: int) -> dict[str, Any]:
@@ -118,6 +128,8 @@ def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[Att
         "step_noun": spec.report.step_noun,
         "group_noun": spec.report.group_noun,
         "env_options": config.env_options,
+        "prompts": config.prompts,
+        "departures": departures(config),
         "task_set": task_set_digest(tasks),
         "overall": _section(eps, tasks, config.runs, k_max, spec, wm),
     }
@@ -177,8 +189,23 @@ def _count(m: float | None, s: float | None) -> str:
 
 def setting(report: dict[str, Any]) -> str:
     """What distinguishes one run directory's rows from another's in a combined table."""
-    options = ",".join(f"{k}={v}" for k, v in sorted(report["env_options"].items()))
+    options = ",".join(f"{k}={v}" for k, v in sorted(options_of(report).items()))
     return f"{report['model']} {report['format'].upper()}" + (f" {options}" if options else "")
+
+
+def options_of(report: dict[str, Any]) -> dict[str, Any]:
+    """The environment options and, where they are not the paper's, the prompts: what makes
+    an environment setting (reports of one setting compare; others are never mixed)."""
+    prompts = report.get("prompts", "before-parity")
+    return {**report["env_options"], **({} if prompts == "paper" else {"prompts": prompts})}
+
+
+def paper_setting(report: dict[str, Any]) -> str:
+    """The report's set-up in words: the paper's, or how it departs from it."""
+    away = report.get("departures")
+    if away is None:  # a report made before reports said so
+        away = [f"prompts={report.get('prompts', 'before-parity')}"]
+    return "the paper's set-up" if not away else f"departs from the paper: {', '.join(away)}"
 
 
 @dataclass(frozen=True)
@@ -188,6 +215,12 @@ class _Columns:
     headers: list[str]
     key: list[str]  # what each column is, for the key under the table
     cells: Callable[[dict[str, Any], dict[str, Any], dict[str, Any]], list[str]]  # (report, mean, std) -> cells
+    across_runs: Callable[[dict[str, Any], dict[str, Any]], list[str]] | None = None  # (report, section) -> cells
+
+    def row(self, report: dict[str, Any], section: dict[str, Any]) -> list[str]:
+        if self.across_runs is not None:
+            return self.across_runs(report, section)
+        return self.cells(report, section["mean"], section["std"])
 
 
 def _column_groups(reports: Sequence[dict[str, Any]]) -> list[_Columns]:
@@ -204,6 +237,13 @@ def _column_groups(reports: Sequence[dict[str, Any]]) -> list[_Columns]:
     else:
         out.append(_Columns(["Success"], ["Success: tasks solved (%)"],
                             lambda r, m, s: [_pct(m["success_at"][0], s["success_at"][0])]))
+    runs = max(r["runs"] for r in reports)
+    if runs > 1 and k_max > 1:  # beside Att.k, as the paper's tables; one run: Pass@1 is Att.K
+        out.append(_Columns(
+            [f"Pass@{k}" for k in range(1, runs + 1)],
+            ["Pass@k: tasks solved within the attempt budget in at least one of k runs (%, the paper's Pass@k)"],
+            lambda r, m, s: [], across_runs=lambda r, sec: [
+                _pct(sec["pass_at"][k], None) if k < len(sec.get("pass_at", [])) else "-" for k in range(runs)]))
     checkpoints = next((list(m["success_within_steps"]) for m in means if "success_within_steps" in m), None)
     if checkpoints:
         noun = reports[0]["step_noun"]
@@ -309,7 +349,7 @@ def _table(reports: Sequence[dict[str, Any]]) -> _Table:
     for report in reports:
         for name, sec in [("all", report["overall"]), *report.get("groups", {}).items()]:
             rows.append(([setting(report)] if combined else []) + [name, str(sec["tasks"])]
-                        + [c for g in groups for c in g.cells(report, sec["mean"], sec["std"])])
+                        + [c for g in groups for c in g.row(report, sec)])
     return _Table(header, rows, labels, columns, [k for g in groups for k in g.key])
 
 
@@ -337,7 +377,7 @@ def render_text(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
         done = sum(r["tasks"] - r["unfinished"] for r in report["overall"]["per_run"])
         total = report["overall"]["tasks"] * report["runs"]
         lines.append(f"{report['title']} · {setting(report)} · {report['runs']} run(s), seed {report['seed']} · "
-                     f"episodes complete {done}/{total}")
+                     f"episodes complete {done}/{total} · {paper_setting(report)}")
     note = mixed_task_sets(reports)
     if note:
         lines.append(f"note: {note}")
@@ -413,7 +453,7 @@ def _latex_caption(reports: list[dict[str, Any]]) -> str:
     """Environment, setting(s), runs and seed, and the columns' key."""
     runs = "/".join(str(r) for r in dict.fromkeys(r["runs"] for r in reports))
     seeds = "/".join(str(r) for r in dict.fromkeys(r["seed"] for r in reports))
-    who = "; ".join(setting(r) for r in reports)
+    who = "; ".join(f"{setting(r)} ({paper_setting(r)})" for r in reports)
     return _latex_cell(f"{reports[0]['title']}: {who}; {runs} run(s), seed {seeds}. {table_key(reports)}.")
 
 

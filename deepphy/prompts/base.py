@@ -70,8 +70,20 @@ class EnvPrompt(ABC):
     def prediction_hint(self) -> str:
         """WM only: what the prediction should describe (e.g. where the ball will land)."""
 
+    def recent_steps(self, task: Task) -> int:
+        """On the fly: how many of this attempt's earlier decisions a prompt shows."""
+        return self.recent_steps_shown
+
+    def retry(self, task: Task, observation: Observation) -> str:
+        """After failed attempts: the paper's retry instructions, in our words (analyse what
+        went wrong, propose a new action, never repeat one that failed). An environment
+        whose paper prompt says more (PHYRE's grid, I-PHYRE's checklist) adds it."""
+        return RETRY
+
 
 CURRENT_OBSERVATION = "Current observation:"  # the text part after which a prompt shows the observation
+RETRY = ("Before you answer, analyse why your earlier attempts failed (their pictures, where the history has them, "
+         "show what happened). Then propose a new, better action: do not repeat an action that already failed.")
 
 
 def _vla_instructions(example: str) -> str:
@@ -113,8 +125,9 @@ def build_messages(
         parts.append(_text(f"Your previous {len(history)} attempt(s) at this task failed:"))
         for past in history:
             parts.extend(past.parts)
-        parts.append(_text("Every attempt starts again from the same initial state."))
-    shown = list(recent)[-prompt.recent_steps_shown :]
+        parts.append(_text("Every attempt starts again from the same initial state. " + prompt.retry(task, observation)))
+    keep = prompt.recent_steps(task)
+    shown = list(recent)[-keep:] if keep else []
     if shown:
         parts.append(_text("Your earlier decisions in this attempt, oldest first:"))
         for past in shown:

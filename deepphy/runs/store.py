@@ -52,7 +52,7 @@ from pydantic import ValidationError
 from deepphy.chat import Image, ImagePart, Message, TextPart
 from deepphy.config import RunConfig
 from deepphy.envs.base import SAFE_ID
-from deepphy.messages import validation_message
+from deepphy.messages import one_line, validation_message
 from deepphy.prompts import image_digest, prompt_as_json
 from deepphy.runs.records import DIGEST, AttemptRecord, episode_finished
 
@@ -143,6 +143,11 @@ class RunStore:
             raise RunDirError(f"{path}/{escaped[0]} leads out of the run directory (a symlink?); refusing to use it")
         if CONFIG in entries:
             previous = read_config(path)
+            if previous.prompts != config.prompts:
+                raise RunDirError(
+                    f"{path} was made with deepphy's prompts from {previous.prompts} and cannot be resumed with "
+                    f"the {config.prompts} prompts (docs/comparability.md); report, leaderboard and export still "
+                    "read it: choose another --out for a new run")
             if previous != config:
                 diff = _diff(previous.model_dump(mode="json"), config.model_dump(mode="json"))
                 raise RunDirError(
@@ -374,13 +379,18 @@ def read_config(path: str | Path) -> RunConfig:
     if (path / CONFIG).exists() and inside(path.resolve(), CONFIG) is None:
         raise RunDirError(f"{path / CONFIG} leads out of the run directory (a symlink?); refusing to read it")
     try:
-        return RunConfig.model_validate_json((path / CONFIG).read_bytes())
+        raw = json.loads((path / CONFIG).read_bytes())
+        if isinstance(raw, dict) and "prompts" not in raw:
+            raw["prompts"] = "before-parity"  # written before the config named its prompts
+        return RunConfig.model_validate(raw)
     except FileNotFoundError:
         raise RunDirError(f"{path} is not a run directory (no {CONFIG})") from None
     except OSError as e:
         raise RunDirError(f"cannot read {path / CONFIG}: {e.strerror or e}") from None
     except ValidationError as e:
         raise RunDirError(f"{path / CONFIG} is not a valid run config: {_first_error(e)}") from None
+    except (ValueError, RecursionError) as e:  # not JSON (JSONDecodeError, UnicodeDecodeError), or nested too deep
+        raise RunDirError(f"{path / CONFIG} is not a valid run config: not JSON ({one_line(str(e))[:200]})") from None
 
 
 def read_lines(path: str | Path) -> list[tuple[int, bytes]]:

@@ -8,7 +8,7 @@ ball falls out of the bottom of the scene.
 
 from deepphy.envs.base import Planning
 from deepphy.envs.iphyre.space import Click, IPhyrePlan, IPhyreSpace
-from deepphy.envs.spec import EnvSpec
+from deepphy.envs.spec import EnvSpec, ReportSpec
 
 SPEC = EnvSpec(
     name="iphyre",
@@ -18,6 +18,7 @@ SPEC = EnvSpec(
     planning=Planning.IN_ADVANCE,
     max_attempts=10,
     max_steps=1,
+    report=ReportSpec(pass_k=3),  # the paper's Pass@3 figure
     shortcuts="deepphy.envs.iphyre.shortcuts:SHORTCUTS",
     description="40 games: remove gray blocks at chosen times so every red ball falls out",
 )

@@ -59,22 +59,24 @@ class IPhyreEnv(Environment):
     def tasks(cls, options) -> list[Task]:
         from iphyre.games import GAMES
 
-        return [Task(env=SPEC.name, id=g, group=GROUPS[i // 10]) for i, g in enumerate(GAMES)]
+        return [Task(env=SPEC.name, id=g, group=GROUPS[i // 10], params={"state_text": options.state_text})
+                for i, g in enumerate(GAMES)]
 
     # -- the contract ---------------------------------------------------------------
 
     def reset(self, task: Task) -> Observation:
         self._task = task
         self._centres = _block_centres(task.id)
-        known = INITIAL.get(task.id)
+        key = (task.id, self.options.state_text)
+        known = INITIAL.get(key)
         if known is not None:
             return known  # step() builds its own fresh simulator
         self._sim = _fresh_sim(task.id)
         scene = self.render()
         annotated = self.render(labels=True)
-        return INITIAL.put(task.id, Observation(
+        return INITIAL.put(key, Observation(
             images=[
-                Image.from_array("scene", "The scene at t = 0 s.", scene),
+                Image.from_array("scene", "The scene at the start.", scene),
                 Image.from_array("annotated", "The same scene with each gray block's index.", annotated),
             ],
             text=self._describe(),
@@ -92,11 +94,14 @@ class IPhyreEnv(Environment):
         clicks = [(self._centres[c.index], c.time) for c in action.clicks]
         success, removed, end_time, frames, pictures = self._simulate(clicks, film)
         end_time = round(end_time, 4)
-        if success:
-            feedback = f"all red balls left the scene at t = {end_time:.2f} s"
-        else:
-            feedback = f"not every red ball fell out of the scene within {MAX_TIME:g} s"
-        feedback += f"; {removed} of {len(clicks)} removal(s) took effect"
+        # The paper's history says no more than "failed" (its key frames show what happened)
+        feedback = ""
+        if self.options.state_text:
+            if success:
+                feedback = f"all red balls left the scene at t = {end_time:.2f} s"
+            else:
+                feedback = f"not every red ball fell out of the scene within {MAX_TIME:g} s"
+            feedback += f"; {removed} of {len(clicks)} removal(s) took effect"
         strip = stack_frames([f for _, f in frames], [f"t={t:.1f}s" for t, _ in frames])
         return StepResult(
             terminated=success,
@@ -174,7 +179,10 @@ class IPhyreEnv(Environment):
         return img
 
     def _describe(self) -> str:
-        lines = [f"Gray blocks you may remove ({len(self._centres)}), by index and centre (x, y) in pixels:"]
+        n = len(self._centres)
+        if not self.options.state_text:  # the paper's: how many, and the highest index
+            return f"Gray blocks you may remove: {n} (indices 0 to {n - 1})."
+        lines = [f"Gray blocks you may remove ({n}), by index and centre (x, y) in pixels:"]
         lines += [f"  {i}: ({x:.0f}, {y:.0f})" for i, (x, y) in enumerate(self._centres)]
         lines.append(f"The scene is {self._sim.WIDTH}x{self._sim.HEIGHT} px, y grows downward.")
         return "\n".join(lines)

@@ -82,7 +82,8 @@ class KinetixEnv(Environment):
         for size in SIZES:
             if size in options.sizes:
                 out += [
-                    Task(env=SPEC.name, id=task_id(name), group=size, params={"level": name})
+                    Task(env=SPEC.name, id=task_id(name), group=size,
+                         params={"level": name, "state_text": options.state_text})
                     for name in level_names(size)
                 ]
         return out
@@ -240,10 +241,13 @@ class KinetixEnv(Environment):
         parts = [f"M{i} ({len(j)} motor{'s' if len(j) > 1 else ''})" for i, j in enumerate(c.motor_joints)]
         parts += [f"T{i} ({len(t)} thruster{'s' if len(t) > 1 else ''})" for i, t in enumerate(c.thrusters)]
         dist = "n/a" if self._distance is None else f"{self._distance:.0f} px"
+        # The level's name (a hint: "car_flip"), the decisions left and a decision's duration are
+        # not in the paper's prompt: state_text only
+        head = [f"Level {self._task.id} (size {self._task.group}). Decision {self._decision + 1} of {MAX_DECISIONS}; "
+                f"each decision is held for {SECONDS_PER_DECISION:.2f} s of simulated time."] if self.options.state_text else []
         return "\n".join(
             [
-                f"Level {self._task.id} (size {self._task.group}). Decision {self._decision + 1} of {MAX_DECISIONS}; "
-                f"each decision is held for {SECONDS_PER_DECISION:.2f} s of simulated time.",
+                *head,
                 f"Controls, in action order: {', '.join(parts)}.",
                 f"Your action is a JSON list of {space.length} integer{'s' if space.length != 1 else ''}: [{', '.join(space.labels())}].",
                 f"Goal distance (centre of the green shape to centre of the nearest blue shape): {dist}.",

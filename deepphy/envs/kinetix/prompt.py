@@ -1,4 +1,9 @@
-"""Kinetix prompt: drive a level's motors and thrusters so a green shape reaches a blue one."""
+"""Kinetix prompt: drive a level's motors and thrusters so a green shape reaches a blue one.
+
+By default it gives what the paper's Kinetix prompt gives (docs/comparability.md): the legend,
+the controls and their labels, the last 5 frames, actions and goal distances; not the level's
+name (Kinetix's names hint at the solution), a decision's duration or the decisions left.
+`state_text=true` adds those."""
 
 from deepphy.envs.base import Observation, Task
 from deepphy.envs.kinetix.levels import MAX_DECISIONS, SECONDS_PER_DECISION
@@ -37,7 +42,12 @@ class KinetixPrompt(EnvPrompt):
                 f"- {t} thruster entr{'y' if t == 1 else 'ies'} ({', '.join(labels[m:])}): 0 = off, 1 = fire;"
             )
         w, h = observation.images[0].size
-        return f"""You are controlling a machine in a 2D physics level of Kinetix ("{task.id}", a {SIZE_WORDS.get(task.group, task.group)} level). Gravity pulls down.
+        rich = bool(task.params.get("state_text"))  # the level's name, a decision's duration, the budget
+        level = f' ("{task.id}", a {SIZE_WORDS.get(task.group, task.group)} level)' if rich else ""
+        held = (f"is held for about {SECONDS_PER_DECISION:.2f} s of\nsimulated time; then you see the new scene and decide "
+                f"again. You have at most {MAX_DECISIONS} decisions." if rich else
+                "is held for a short while; then you see\nthe new scene and decide again.")
+        return f"""You are controlling a machine in a 2D physics level of Kinetix{level}. Gravity pulls down.
 
 What the image shows (white background):
 - green shapes: the shapes that must reach the goal;
@@ -53,12 +63,11 @@ What the image shows (white background):
 
 Goal: make a green shape touch a blue shape. Touching red, or running out of time, fails.
 
-How you act: every decision sets all controls at once and is held for about {SECONDS_PER_DECISION:.2f} s of
-simulated time; then you see the new scene and decide again. You have at most {MAX_DECISIONS} decisions.
+How you act: every decision sets all controls at once and {held}
 A decision is a JSON list of exactly {m + t} integer{'s' if m + t != 1 else ''}, in this order: [{', '.join(labels)}].
 {chr(10).join(entries)}
 After each decision you are told the goal distance: the distance in pixels between the centre of
-the green shape and the centre of the nearest blue shape (the image is {w}x{h} pixels).
+the green shape and the centre of the nearest blue shape{f" (the image is {w}x{h} pixels)" if rich else ""}.
 
 A reply that does not contain such a list, has the wrong number of entries, or uses a value out of
 range is an invalid action and ends the attempt as a failure."""

@@ -21,7 +21,7 @@ attempts do not count for AUCCESS.
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field
@@ -53,6 +53,8 @@ class PhyreOptions(EnvOptions):
     split: Literal["train", "dev", "test"] = "test"
     actions: ActionSpaces = "grid5"
     image_size: int = Field(512, ge=128, le=2048)  # rendered images are image_size x image_size
+
+    PAPER: ClassVar[dict[str, Any]] = {"actions": "grid5"}  # the paper's 5 x 5 cells, 5 radius levels
 
 
 def task_id(setup: str, phyre_id: str) -> str:
@@ -89,7 +91,8 @@ class PhyreEnv(Environment):
         for setup in setups:
             for pid in get_fold(setup, options.fold, all_ids)[options.split]:
                 out.append(Task(env=SPEC.name, id=task_id(setup, pid), group=setup,
-                                params={"phyre_id": pid, "template": pid.split(":")[0], "setup": SETUPS[setup]}))
+                                params={"phyre_id": pid, "template": pid.split(":")[0], "setup": SETUPS[setup],
+                                        "state_text": options.state_text}))
         return out
 
     @property
@@ -110,7 +113,7 @@ class PhyreEnv(Environment):
         scene = render(self._task, size=self.options.image_size)
         return INITIAL.put(key, Observation(
             images=[Image.from_array("scene", "The initial scene.", scene), self._overlay(scene)],
-            text=describe_goal(self._task),
+            text=describe_goal(self._task, self.options.state_text),
             action_space=self.space,
         ))
 
@@ -136,14 +139,17 @@ class PhyreEnv(Environment):
         try:
             ball = sim.place(task, *triple)
         except InvalidPlacement as e:
-            return StepResult(terminated=True, success=False, invalid_reason=str(e),
-                              feedback=f"invalid placement: {e}; nothing was simulated", info=info), None, None
+            # The paper's history says "out of bounds or overlapping"; where is for state_text (and info)
+            reason = str(e) if self.options.state_text else INVALID_PLACEMENT
+            return StepResult(terminated=True, success=False, invalid_reason=reason,
+                              feedback=f"invalid placement: {reason}; nothing was simulated",
+                              info={**info, "placement": str(e)}), None, None
         outcome = sim.simulate(task, ball, frame_every=frame_every)
         return StepResult(
             terminated=outcome.end != "time_out",
             truncated=outcome.end == "time_out",  # 1000 steps ran out without a decision
             success=outcome.solved,
-            feedback=describe_outcome(task, outcome),
+            feedback=describe_outcome(task, outcome) if self.options.state_text else "",
             key_frames=[self._strip(task, ball, outcome)],
             info={**info, "ball_px": list(ball), "steps": outcome.steps, "simulated_steps": outcome.simulated,
                   "end": outcome.end, "touched": outcome.touched},
@@ -168,14 +174,17 @@ class PhyreEnv(Environment):
 
         Past the last computed step the scene is at rest (or the goal completed), so the
         last recorded poses are the true poses of any later step."""
-        end = outcome.steps if outcome.end != "time_out" else outcome.simulated
+        # Up to the step the goal completed, or the world came to rest (the last computed step): a
+        # resting world would repeat one picture (PHYRE's own steps run on to 1000 after it).
+        end = outcome.steps if outcome.end == "solved" else outcome.simulated
         targets = [round(end * k / KEY_FRAMES) for k in range(1, KEY_FRAMES + 1)]
         frames = [f for f in outcome.frames if f[0] % FRAME_EVERY == 0 or f is outcome.frames[-1]]
+        chosen = [max((f for f in frames if f[0] <= target), key=lambda f: f[0]) for target in targets]
+        chosen = list({step: (step, poses) for step, poses in chosen}.values())  # distinct moments only
         images, captions = [], []
-        for target in targets:
-            _, poses = max((f for f in frames if f[0] <= target), key=lambda f: f[0])
+        for step, poses in chosen:
             images.append(render(task, ball, poses, size=256))
-            captions.append(f"t={target / sim.FPS:.1f}s")
+            captions.append(f"t={step / sim.FPS:.1f}s")
         strip = stack_frames(images, captions, height=256)
         return Image.from_array("outcome", "frames of what happened (left to right)", strip)
 
@@ -218,15 +227,29 @@ def draw_axes(img: np.ndarray, ticks: int = 10) -> np.ndarray:
     return img
 
 
-def describe_goal(task: data.PhyreTask) -> str:
-    seconds = sim.SOLVED_STEPS / sim.FPS
-    return f"Goal: {task.description.rstrip('.')} for at least {seconds:g} seconds in a row (PHYRE task {task.id})."
+INVALID_PLACEMENT = "the ball overlaps an object or is not wholly inside the scene"
+
+
+def describe_goal(task: data.PhyreTask, state_text: bool = False) -> str:
+    """The task's goal in words: which two objects must touch (`state_text`: PHYRE's own
+    sentence with the time it must hold and the task's id, a hint at its template)."""
+    if state_text:
+        seconds = sim.SOLVED_STEPS / sim.FPS
+        return f"Goal: {task.description.rstrip('.')} for at least {seconds:g} seconds in a row (PHYRE task {task.id})."
+    subject, target = (_name(b) for b in _goal_pair(task))
+    return f"Goal: the {subject} must end up touching the {target}."
+
+
+def _goal_pair(task: data.PhyreTask) -> list[data.Body]:
+    pair = [task.bodies[task.body1], task.bodies[task.body2]]
+    pair.sort(key=lambda b: b.color != "green")  # the green object is the subject of the sentence
+    return pair
 
 
 def describe_outcome(task: data.PhyreTask, outcome: sim.Outcome) -> str:
-    pair = [task.bodies[task.body1], task.bodies[task.body2]]
-    pair.sort(key=lambda b: b.color != "green")  # the green object is the subject of the sentence
-    subject, target = (_name(b) for b in pair)
+    """What happened, with its times (`state_text`; by default the history says only "failed",
+    as the paper's does, and the key frames show what happened)."""
+    subject, target = (_name(b) for b in _goal_pair(task))
     held, total = sim.SOLVED_STEPS / sim.FPS, sim.MAX_STEPS / sim.FPS
     if outcome.solved:
         return f"solved: the {subject} kept touching the {target} for {held:g} s (at t = {outcome.steps / sim.FPS:.1f} s)"

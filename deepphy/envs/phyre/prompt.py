@@ -1,7 +1,9 @@
-"""PHYRE prompt: place one red ball so that PHYRE's goal holds for 3 seconds.
+"""PHYRE prompt: place one red ball so that the green object ends up touching its goal.
 
-Every number comes from the environment: the scene size, the simulated time and the
-goal's duration from `deepphy.envs.phyre.sim`/`space`, the grid and radii from the space.
+By default it gives what the paper's PHYRE prompt gives (docs/comparability.md): the colour
+legend, the numbered grid, the radius levels as shares of the image's width, the validity
+rules; no sizes in pixels, no physical constants, no time limits. `state_text=true` gives
+deepphy's earlier, richer text. Every number comes from the environment's space and sim.
 """
 
 from deepphy.envs.base import Observation, Task
@@ -13,6 +15,47 @@ from deepphy.prompts.base import EnvPrompt
 class PhyrePrompt(EnvPrompt):
     def rules(self, task: Task, observation: Observation) -> str:
         space = observation.action_space
+        if task.params.get("state_text") or isinstance(space, PhyreContinuousSpace):
+            return self._rich_rules(space)
+        assert isinstance(space, PhyreSpace)
+        g, levels = space.grid, space.radius_levels
+        n = g * g
+        return f"""You are an expert at physics puzzles. This one is a PHYRE puzzle: a 2D side view with gravity
+pulling everything down; the edges of the picture are walls and its bottom edge is the floor.
+Colours:
+- red: the ball you add;
+- green: the object that has to reach the goal;
+- blue: a goal object that moves; purple: a goal object that is fixed;
+- gray: other objects that move (they fall, roll, slide and tip over);
+- black: fixed obstacles; they never move.
+
+Goal: place one red ball so that, once everything moves, the green object ends up touching the
+blue or purple goal object and stays in contact (a brief touch does not count). The ball is
+placed before anything moves; nothing else can be changed.
+
+Where the ball goes: the second image overlays a {g} x {g} grid of cells, each with its number
+printed in it, 1 to {n}, row by row from the top-left. The centre of the red ball is placed at
+the centre of the chosen cell. Its radius is one of {levels} levels: level 1 is tiny, about
+{_share(space.radius_px(1))} of the image's width, level {levels} the largest, about {_share(space.radius_px(levels))} of it, and the
+levels in between grow evenly. The ball starts at rest and falls when everything starts.
+
+Validity: the ball must lie wholly inside the scene and must not overlap any object (touching
+is allowed). A placement that breaks either rule is an invalid attempt: nothing is simulated
+and the attempt is used up. An answer that is not in the format below is invalid too.
+
+Answer format: Cell: <1..{n}>, Radius: <1..{levels}>"""
+
+    def retry(self, task: Task, observation: Observation) -> str:
+        space = observation.action_space
+        if not isinstance(space, PhyreSpace):
+            return super().retry(task, observation)
+        return (f"{super().retry(task, observation)} Never reuse a cell and radius pair you have already tried. "
+                f"Choose the cell on the image with the numbered grid; radius levels run from 1 (about "
+                f"{_share(space.radius_px(1))} of the image's width) to {space.radius_levels} (about "
+                f"{_share(space.radius_px(space.radius_levels))}).")
+
+    def _rich_rules(self, space) -> str:
+        """deepphy's text before paper parity (`state_text=true`; the continuous action space)."""
         held = sim.SOLVED_STEPS / sim.FPS
         total = sim.MAX_STEPS / sim.FPS
         head = f"""You are solving a PHYRE physics puzzle.
@@ -68,3 +111,8 @@ an invalid attempt."""
         if isinstance(observation.action_space, PhyreContinuousSpace):
             return "X: 0.5, Y: 0.8, R: 0.3"
         return "Cell: 8, Radius: 3"
+
+
+def _share(radius_px: float) -> str:
+    """A radius as a share of the scene's width, as the paper states the levels: "1/128"."""
+    return f"1/{SCENE / radius_px:.0f}"

@@ -35,13 +35,18 @@ Decisions (documented in the README):
 - A 9-ball potted on a foul is respotted on the foot spot (w/2, 3l/4) or the nearest free
   point (standard nine-ball rule; pooltool only respots it when it was the last ball).
 - Attempts: one game per task (max_attempts 1), at most 15 shots (max_steps 15).
-- Option `rules=reference` reproduces the reference implementation's set-up, so published
-  numbers can be compared: one rack (drawn once, `seeded_rng("pooltool", "rack",
+- Rules: `rules=reference` (the default) reproduces the reference implementation's set-up,
+  so numbers compare with the paper's: one rack (drawn once, `seeded_rng("pooltool", "rack",
   "reference")`) copied for all 100 games; no separate break (the cue ball starts on the
   head spot and shot 1 aims at the 1-ball like any other); no fouls: any shot that pots the
   9-ball wins; a potted cue ball goes back on the head spot (or the nearest free point);
   potted balls stay down. The paper itself blames the single rack for a deterministic
-  model scoring 100%, hence not the default.
+  model scoring 100%: `rules=nineball` (an opt-in departure from the paper) plays 100
+  different racks under pooltool's nine-ball rules as described above.
+- Observation: by default what the paper's prompt gives, the table seen from above and
+  nothing else (no text, no earlier shots); `state_text=true` adds the ball positions in
+  metres, the shot count, the target circled with the cue's line to it, and the earlier
+  shots of the game.
 - Numba: pooltool compiles its kernels on the first shot (~25-30 s of CPU). We point
   NUMBA_CACHE_DIR at $DEEPPHY_CACHE_DIR/numba (default ~/.cache/deepphy/numba) before
   numba is imported, so every process and worker on a machine shares one cache, and the
@@ -55,7 +60,7 @@ from JSON by the MOCK model) without pulling in panda3d and numba.
 from __future__ import annotations
 
 import re
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -81,7 +86,9 @@ from deepphy.envs.pooltool.space import MAX_SHOTS, NUM_RACKS, PoolShot, PoolSpac
 
 
 class PooltoolOptions(EnvOptions):
-    rules: Literal["nineball", "reference"] = "nineball"  # see the module's docstring
+    rules: Literal["nineball", "reference"] = "reference"  # see the module's docstring
+
+    PAPER: ClassVar[dict[str, Any]] = {"rules": "reference"}  # the reference implementation's set-up
 
 
 class PooltoolEnv(Environment):
@@ -102,7 +109,8 @@ class PooltoolEnv(Environment):
 
     @classmethod
     def tasks(cls, options) -> list[Task]:
-        return [Task(env=SPEC.name, id=f"rack_{k:03d}", params={"rack": k, "rules": options.rules})
+        return [Task(env=SPEC.name, id=f"rack_{k:03d}",
+                     params={"rack": k, "rules": options.rules, "state_text": options.state_text})
                 for k in range(NUM_RACKS)]
 
     @staticmethod
@@ -246,6 +254,9 @@ class PooltoolEnv(Environment):
         system = self._system
         balls = _on_table(system)
         target = balls[0]
+        if not self.options.state_text:  # the paper's: the table, nothing drawn on it, no text
+            return Observation(images=[Image.from_array("table", "The table seen from directly above.",
+                                                        render_table(system))], action_space=PoolSpace())
         img = render_table(system, target=target)
         cue = system.balls["cue"].state.rvw[0]
         lines = [

@@ -1,4 +1,9 @@
-"""Pooltool prompt: single-player nine-ball; choose the cue speed and where to strike the cue ball."""
+"""Pooltool prompt: single-player nine-ball; choose the cue speed and where to strike the cue ball.
+
+By default it gives what the paper's Pooltool prompt gives (docs/comparability.md): the table
+image, the speed and strike-spot names with what spin does, the goal; not the speeds in m/s,
+the spots' offsets, the shot budget, that the aim is automatic, or a history of earlier shots
+(the updated table is the feedback). `state_text=true` gives deepphy's earlier, richer text."""
 
 from deepphy.envs.base import Observation, Task
 from deepphy.envs.pooltool.space import ACTIONS, MAX_SHOTS, SPEEDS, SPOT_OFFSETS
@@ -25,8 +30,49 @@ other. Potted balls stay down. If the cue ball falls into a pocket, it is put ba
 head spot (or right next to it if a ball is in the way)."""
 
 
+PAPER_TEXT = """You are playing single-player nine-ball pool, one shot at a time.
+
+The image shows the table from directly above: green cloth inside brown rails, the six black
+circles are the pockets, the plain white ball is the cue ball (the only ball you strike), and
+the coloured balls carry their numbers 1 to 9 (the 9-ball is white with a yellow band). Balls
+potted earlier have been removed; a cue ball that was potted has been put back on the table.
+
+Goal: pot the 9-ball, in any pocket, by striking the lowest-numbered ball on the table. Potting
+the cue ball is a foul: avoid it. Leave the cue ball well placed for the next shot.
+
+Each shot, choose how hard to strike and where the cue tip strikes the cue ball:
+- speed: {speeds};
+- strike spot, as seen from behind the cue ball:
+    top-left     top-centre     top-right
+    middle-left  middle-centre  middle-right
+    bottom-left  bottom-centre  bottom-right
+  Top spots give follow (the cue ball rolls on after it hits a ball), bottom spots give draw
+  (it stops or comes back), left and right spots give side spin (English), which bends the cue
+  ball's path to one side, most visibly off a cushion; middle-centre gives no spin.
+{rules}
+Answer format (one line, nothing else): Speed: <speed>, Strikespot: <spot>"""
+PAPER_NINEBALL = """
+Rules of this game (deepphy's nine-ball option): the cue ball must hit the lowest-numbered ball
+first, and then some ball must be potted or touch a cushion; the first shot is the break. A
+foul gives ball in hand: the cue ball is placed on the head spot. A 9-ball potted on a foul is
+put back on the table.
+"""
+
+
 class PooltoolPrompt(EnvPrompt):
+    def recent_steps(self, task: Task) -> int:
+        # The paper's prompt has no history of shots: the updated table is the feedback
+        return self.recent_steps_shown if task.params.get("state_text") else 0
+
     def rules(self, task: Task, observation: Observation) -> str:
+        if not task.params.get("state_text"):
+            speeds = list(SPEEDS)
+            return PAPER_TEXT.format(speeds=f"{', '.join(speeds[:-1])} or {speeds[-1]}",
+                                     rules=PAPER_NINEBALL if task.params.get("rules") == "nineball" else "")
+        return self._rich_rules(task)
+
+    def _rich_rules(self, task: Task) -> str:
+        """deepphy's text before paper parity (`state_text=true`)."""
         speeds = list(SPEEDS)
         speed_names = f"{', '.join(speeds[:-1])} or {speeds[-1]}"
         metres = f"{', '.join(f'{v:g}' for v in list(SPEEDS.values())[:-1])} or {list(SPEEDS.values())[-1]:g}"
@@ -45,9 +91,7 @@ The image is the table seen from directly above:
 - the lowest-numbered ball on the table is the target: it is circled in magenta, and a
   dashed line runs from the cue ball to it;
 - the faint vertical line near the left end is the head string, and the faint dot on it is
-  the head spot;
-- in the pictures of earlier shots, thin lines trace the paths the balls took (the cue
-  ball's path in white, each other ball's in its own colour).
+  the head spot.
 The text under the image lists the balls still on the table and their positions.
 
 {goal}
