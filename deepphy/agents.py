@@ -22,6 +22,7 @@ from pathlib import Path
 from deepphy.envs import ActionSpace, get_spec
 from deepphy.envs import shortcuts
 from deepphy.models import ModelClient, ModelConfig, UnknownModel, client_from_config, load_models
+from deepphy.models.config import load_groups
 from deepphy.models.base import ModelRequest, ModelResponse, RequestContext
 from deepphy.models.limiter import Limiter
 from deepphy.chat import PromptFormat
@@ -107,8 +108,25 @@ def endpoint_config(name: str, models_file: str | Path | None = None) -> ModelCo
         return None
     models = load_models(models_file)
     if name not in models:
-        raise UnknownModel(name, [*BASELINES, "shortcut-<name>", *sorted(models)])
+        groups = load_groups(models_file)
+        raise UnknownModel(name, [*BASELINES, "shortcut-<name>", *sorted(models), *(f"{g} (group)" for g in sorted(groups))])
     return models[name]
+
+
+def expand_models(names: list[str], models_file: str | Path | None = None) -> list[str]:
+    """`names` with each group of the models file replaced by its entries, in order, each
+    name once. Baselines are never looked up (a run of `mock` needs no models file)."""
+    if all(is_baseline(name) for name in names):
+        return list(dict.fromkeys(names))
+    groups = load_groups(models_file)
+    return list(dict.fromkeys(member for name in names for member in groups.get(name, [name])))
+
+
+def retiring(names: list[str], models_file: str | Path | None = None) -> list[ModelConfig]:
+    """The entries among `names` whose provider has retired them or announced it (baselines
+    never). UnknownModel for a name that is not an agent."""
+    configs = [endpoint_config(name, models_file) for name in dict.fromkeys(names)]
+    return [c for c in configs if c is not None and c.retirement is not None]
 
 
 def make_agent(name: str, models_file: str | Path | None = None, limiter: Limiter | None = None,

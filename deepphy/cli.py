@@ -35,7 +35,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "per cell, in one Ray runtime; the suite sets the environments, formats, runs and seed")
     run.add_argument("--env", help="environment (see `deepphy envs`); default iphyre")
     run.add_argument("--model", help="model name; default mock (random valid actions); with --suite, "
-                     "comma-separated models (default: the suite's)")
+                     "comma-separated models or groups of the models file, e.g. paper, paper-open, "
+                     "paper-closed (default: the suite's)")
     run.add_argument("--models-file", help="YAML file of model endpoints (default: $DEEPPHY_MODELS_FILE, "
                      "else the shipped deepphy/models/models.yaml)")
     run.add_argument("--max-cost", type=float, metavar="USD",
@@ -206,14 +207,22 @@ def cmd_run(args: argparse.Namespace) -> int:
     ))
     if args.suite:
         return run_suite_command(args, runtime)
-    if args.model and "," in args.model:
-        raise UserError("several models need --suite (one run directory holds one model)")
+    model = "mock"
+    if args.model:
+        from deepphy.agents import expand_models
+
+        models = expand_models([m for m in args.model.split(",") if m], runtime.models_file)
+        if len(models) != 1:
+            raise UserError(f"several models need --suite (one run directory holds one model); --model "
+                            f"{args.model[:60]} names {len(models)}")
+        model = models[0]
     config = _validated(lambda: RunConfig(
-        env=args.env or "iphyre", model=args.model or "mock", format=args.format or "vla",
+        env=args.env or "iphyre", model=model, format=args.format or "vla",
         runs=args.runs if args.runs is not None else 3, seed=args.seed or 0,
         tasks=[t for t in args.tasks.split(",") if t] if args.tasks else None,
         limit=args.limit, max_attempts=args.max_attempts, env_options=_env_options(args.env_option or []),
     ))
+    warn_retired([config.model], runtime.models_file)
     if args.dry_run:
         from deepphy.estimate import estimate, render
 
@@ -235,13 +244,18 @@ def run_suite_command(args: argparse.Namespace, runtime: RuntimeOptions) -> int:
         raise UserError(f"{given[0]} is set by the suite; write it in a suite file instead")
     try:
         suite = S.load_suite(args.suite)
-        models = [m for m in args.model.split(",") if m] if args.model else None
+        models = S.suite_models(suite, [m for m in args.model.split(",") if m] if args.model else None,
+                                runtime.models_file)
+        warn_retired(models, runtime.models_file)
         root = Path(args.out or f"runs/{suite.name}")
         if args.dry_run:
-            from deepphy.estimate import estimate, render
+            from deepphy.estimate import estimate, render, render_by_model
 
-            cells = S.cells(suite, models)
-            print(render([estimate(c.config, runtime.models_file, label=c.dir) for c in cells]))
+            estimates = [estimate(c.config, runtime.models_file, label=c.dir) for c in S.cells(suite, models)]
+            print(render(estimates))
+            if len(models) > 1:
+                print()
+                print(render_by_model(estimates, retirement_status(models, runtime.models_file)))
             return 0
         outcomes = S.run_suite(suite, root, runtime, models, cell_lines=args.cell_lines)
     except S.SuiteError as e:
@@ -255,6 +269,29 @@ def run_suite_command(args: argparse.Namespace, runtime: RuntimeOptions) -> int:
         return 1
     print(f"next: deepphy leaderboard {root}")
     return 0
+
+
+def warn_retired(models: list[str], models_file: str | None) -> None:
+    """A line on stderr for each model its provider has retired or will retire, before Ray
+    starts. A warning, not a refusal: the entry's date is the provider's public one, and an
+    endpoint can outlive it (OpenAI sells capacity past a shutdown date; a base_url may point
+    at another platform's schedule); a model that no longer answers costs nothing, its
+    episodes are left unfinished with the provider's own error."""
+    import datetime
+
+    from deepphy.agents import retiring
+
+    for c in retiring(models, models_file):
+        print(f"deepphy: warning: {c.retirement.notice(c.name, c.model, datetime.date.today())}", file=sys.stderr)
+
+
+def retirement_status(models: list[str], models_file: str | None) -> dict[str, str]:
+    """model -> `retired DATE` / `retires DATE`, for the models that have a retirement."""
+    import datetime
+
+    from deepphy.agents import retiring
+
+    return {c.name: c.retirement.status(datetime.date.today()) for c in retiring(models, models_file)}
 
 
 def run_summary(outcome) -> tuple[list[str], int]:

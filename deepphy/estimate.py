@@ -124,6 +124,7 @@ class CellEstimate:
     requests_expected: float = 0.0  # what the reference random baseline asks (see the module)
     endpoint: str | None = None  # the endpoint's limiter key (cells of one endpoint share its limit)
     requests_per_min: float | None = None
+    model: str = ""  # the agent's name (a suite's per-model summary groups by it)
 
     @property
     def expected_min(self) -> float | None:
@@ -250,7 +251,9 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
     episodes = len(tasks) * config.runs
     requests_max = episodes * k_max * steps
     max_tokens = endpoint.max_tokens or config.max_tokens if endpoint is not None else None
-    known = endpoint is not None and (endpoint.price.input_per_mtok > 0 or endpoint.price.output_per_mtok > 0)
+    # a price written in the entry is known, $0 included (a self-hosted server's); an absent one is not
+    known = endpoint is not None and ("price" in endpoint.model_fields_set or endpoint.price.input_per_mtok > 0
+                                      or endpoint.price.output_per_mtok > 0)
     input_max = episodes * sum(totals) / n_sampled if rule is not None else None
     played = baseline_requests(config, sample)
     rpm = endpoint.rate_limits.requests_per_min if endpoint is not None else None
@@ -276,6 +279,7 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
         requests_expected=episodes * sum(played) / len(played),
         endpoint=endpoint.limiter_key if endpoint is not None else None,
         requests_per_min=rpm,
+        model=config.model,
     )
 
 
@@ -354,3 +358,32 @@ def _minutes(m: float) -> str:
     if m < 10:
         return f"{m:.1f} min"
     return f"{m:,.0f} min" if m < 120 else f"{m / 60:,.1f} h"
+
+
+def render_by_model(cells: list[CellEstimate], status: dict[str, str] | None = None) -> str:
+    """A suite's cells summed per model (rows in the cells' order), then the total: what each
+    model's share of the grid asks and costs, and how long its cells take at its endpoint's
+    limit (the total's time: the slowest endpoint, as `suite_time`). `status`: model -> a note
+    (e.g. its retirement)."""
+    status = status or {}
+    header = ["model", "cells", "requests~", "requests<=", "in tokens<=", "cost<=", "time~", "time>=", "status"]
+    models = list(dict.fromkeys(c.model for c in cells))
+
+    def row(label: str, group: list[CellEstimate], note: str) -> list[str]:
+        priced = [c for c in group if c.tokens_first is not None]
+        cost = sum((c.cost_input_max or 0) + (c.cost_output_max or 0) for c in priced)
+        unknown = any(not c.price_known for c in priced)
+        shown = ("$0 (no model)" if not priced else "unknown price" if unknown and not cost
+                 else f"${cost:,.2f}" + (" + unknown" if unknown else ""))
+        return [label, _n(len(group)), _n(sum(c.requests_expected for c in group)),
+                _n(sum(c.requests_max for c in group)), _n(sum(c.input_tokens_max or 0 for c in group)), shown,
+                *suite_time(group), note]
+
+    rows = [row(m, [c for c in cells if c.model == m], status.get(m, "")) for m in models]
+    rows.append(row(f"total ({len(models)} models)", cells, ""))
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
+    fmt = lambda r: "  ".join(c.ljust(w) if i in (0, len(header) - 1) else c.rjust(w)  # noqa: E731
+                              for i, (c, w) in enumerate(zip(r, widths))).rstrip()
+    return "\n".join([fmt(header), fmt(["-" * w for w in widths]), *map(fmt, rows), "",
+                      "per model: its cells summed; cost<= = in cost<= + out cost<=; time~ and time>=: its cells one "
+                      "after another at its endpoint's requests/min (the total: the slowest endpoint)."])

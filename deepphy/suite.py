@@ -2,7 +2,7 @@
 
 A suite file names environments (each with fixed options and option axes, e.g. Kinetix
 `annotate: [true, false]`), prompt formats, repetitions, a seed and default models; `--model
-a,b` replaces the models. Its cells are environments x option values x models x formats,
+a,b` replaces the models (a group of the models file, e.g. `paper`, stands for its models). Its cells are environments x option values x models x formats,
 and each cell is an ordinary run directory under the suite root,
 `ROOT/<model>/<env>[-<option>=<value>...]/<format>`, holding its `runs` repetitions, so
 report, dashboard, plot, export, repair and resume work on a cell as on any run. The
@@ -107,15 +107,24 @@ def _name_part(value: Any) -> str:
     return re.sub(r"[^A-Za-z0-9._=+-]", "_", text)
 
 
-def cells(suite: Suite, models: list[str] | None = None) -> list[Cell]:
+def suite_models(suite: Suite, models: list[str] | None = None, models_file: str | None = None) -> list[str]:
+    """The models of a suite's cells: `models` (default the suite's own), each group of the
+    models file replaced by its entries (`--model paper` is the paper's models)."""
+    from deepphy.agents import expand_models
+
+    return expand_models(models or suite.models, models_file)
+
+
+def cells(suite: Suite, models: list[str] | None = None, models_file: str | None = None) -> list[Cell]:
     """Every cell: environments x option values x models x formats, in that order."""
     out: list[Cell] = []
+    models = suite_models(suite, models, models_file)
     for entry in suite.envs:
         keys = list(entry.axes)
         for values in itertools.product(*(entry.axes[k] for k in keys)):
             options = {**entry.options, **dict(zip(keys, values))}
             setting = entry.env + "".join(f"-{_name_part(k)}={_name_part(v)}" for k, v in sorted(options.items()))
-            for model in models or suite.models:
+            for model in models:
                 for fmt in suite.formats:
                     try:
                         config = RunConfig(env=entry.env, model=model, format=fmt, runs=entry.runs or suite.runs,
@@ -164,7 +173,7 @@ def plan(suite: Suite, root: str | Path, models: list[str] | None, models_file: 
     from deepphy.runs.store import RunStore
 
     root = Path(root)
-    wanted = cells(suite, models)
+    wanted = cells(suite, models, models_file)
     if root.exists() and not root.is_dir():
         raise SuiteError(f"{root} exists and is not a directory")
     if (root / MANIFEST).exists():

@@ -16,12 +16,19 @@ File shape::
         api_key_env: OPENAI_API_KEY  # the NAME of the variable, never the key
         rate_limits: {requests_per_min: 500, tokens_per_min: 300000, max_concurrent: 64}
         price: {input_per_mtok: 2.5, output_per_mtok: 10.0}
+        retirement: {date: 2027-01-14, successor: gpt-6-luna, source: "..."}  # when its provider retires it
+
+    groups:                          # names `--model` accepts for several entries at once
+      paper-closed: [gpt-4o, ...]
+      paper: [paper-open, paper-closed]   # a group may name groups
 """
 
 from __future__ import annotations
 
+import datetime
 import ipaddress
 import os
+import re
 from enum import Enum
 from pathlib import Path
 from typing import Any, Literal
@@ -114,8 +121,34 @@ class Pricing(_Strict):
         return (input_tokens * self.input_per_mtok + output_tokens * self.output_per_mtok) / 1e6
 
 
+class Retirement(_Strict):
+    """Its provider's end of a model: announced (deprecated) before `date`, retired from it on.
+    Retired models stay in the models file (the paper's table names them) and still run, with a
+    warning: some accounts and platforms keep an endpoint after the public date."""
+
+    date: datetime.date = Field(description="the provider's shutdown (retirement) date")
+    successor: str = Field(description="the model id the provider recommends instead")
+    source: str = Field(description="where the date and successor were read, and when")
+
+    def status(self, today: datetime.date) -> str:
+        """`retired DATE` or `retires DATE`, as of `today`."""
+        return f"{'retired' if self.date <= today else 'retires'} {self.date}"
+
+    def notice(self, name: str, model: str, today: datetime.date) -> str:
+        """One line for the user, as of `today`."""
+        if self.date <= today:
+            return (f"model {name} ({model}) was retired by its provider on {self.date} (successor: "
+                    f"{self.successor}); unless this account or endpoint still serves it, its episodes will be "
+                    "left unfinished")
+        return (f"model {name} ({model}) is deprecated: its provider retires it on {self.date} "
+                f"(successor: {self.successor})")
+
+
+MODEL_NAME = r"^[A-Za-z0-9._:+-]+$"
+
+
 class ModelConfig(_Strict):
-    name: str = Field(pattern=r"^[A-Za-z0-9._:+-]+$")
+    name: str = Field(pattern=MODEL_NAME)
     provider: Provider
     model: str = Field(description="the provider's model id")
     base_url: str | None = Field(None, description="default: the provider's public endpoint")
@@ -124,7 +157,11 @@ class ModelConfig(_Strict):
     timeouts: Timeouts = Timeouts()
     retry: RetryPolicy = RetryPolicy()
     price: Pricing = Pricing()
-    max_images: int | None = Field(None, ge=0, description="images per request; default: the provider's")
+    max_images: int | None = Field(None, ge=0, description="images per request; default: the provider's "
+                                   "(a vLLM server's --limit-mm-per-prompt)")
+    max_context_tokens: int | None = Field(
+        None, ge=1, description="the server's context length (vLLM --max-model-len, SGLang --context-length): the "
+        "oldest images are replaced by text until the estimated input plus max_tokens fits")
     max_tokens: int | None = Field(None, ge=1, description="overrides the run's max_tokens (reasoning models need more)")
     send_temperature: bool = True  # some reasoning models reject temperature
     send_seed: bool = True  # OpenAI-compatible and Gemini take a seed; Anthropic has none
@@ -136,6 +173,7 @@ class ModelConfig(_Strict):
         description="send the RequestContext in an X-Deepphy-Context header, for the local MOCK "
         "server only (refused unless base_url is a loopback address)",
     )
+    retirement: Retirement | None = Field(None, description="set once the provider has announced its retirement")
 
     @model_validator(mode="after")
     def _context_only_to_loopback(self) -> "ModelConfig":
@@ -171,6 +209,8 @@ class MissingKey(RuntimeError):
 
 class ModelsFile(_Strict):
     models: list[ModelConfig]
+    groups: dict[str, list[str]] = Field(
+        default_factory=dict, description="name -> entries (or other groups): what `--model NAME` runs")
 
     @model_validator(mode="after")
     def _unique(self) -> "ModelsFile":
@@ -178,9 +218,35 @@ class ModelsFile(_Strict):
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise ValueError(f"duplicate model names: {', '.join(dup)}")
-        if "mock" in names:
+        if "mock" in [*names, *self.groups]:
             raise ValueError("'mock' is built in and cannot be redefined")
         return self
+
+    @model_validator(mode="after")
+    def _groups_name_entries(self) -> "ModelsFile":
+        entries = {m.name for m in self.models}
+        for group, members in self.groups.items():
+            if not re.match(MODEL_NAME, group):
+                raise ValueError(f"group name {group[:40]!r} may hold only letters, digits and . _ : + -")
+            if group in entries:
+                raise ValueError(f"group {group} has the name of a model entry")
+            if not members:
+                raise ValueError(f"group {group} is empty")
+            unknown = [m for m in members if m not in entries and m not in self.groups]
+            if unknown:
+                raise ValueError(f"group {group} names {unknown[0]!r}, neither a model entry nor a group")
+        for group in self.groups:
+            self.members(group)  # a cycle: a clear error here, not at run time
+        return self
+
+    def members(self, group: str, _seen: tuple[str, ...] = ()) -> list[str]:
+        """The entries of `group`, its groups expanded, in order, each once."""
+        if group in _seen:
+            raise ValueError(f"group {group} contains itself (via {' -> '.join(_seen)})")
+        out: list[str] = []
+        for name in self.groups[group]:
+            out += self.members(name, (*_seen, group)) if name in self.groups else [name]
+        return list(dict.fromkeys(out))
 
 
 def is_loopback_url(url: str) -> bool:
@@ -205,10 +271,21 @@ class ModelsFileError(ValueError):
 
 def load_models(models_file: str | Path | None = None) -> dict[str, ModelConfig]:
     """name -> config, from `models_file` (default: $DEEPPHY_MODELS_FILE, else the shipped file)."""
+    return {m.name: m for m in load_models_file(models_file).models}
+
+
+def load_groups(models_file: str | Path | None = None) -> dict[str, list[str]]:
+    """group name -> the entries it stands for (its groups expanded), from `models_file`."""
+    parsed = load_models_file(models_file)
+    return {group: parsed.members(group) for group in parsed.groups}
+
+
+def load_models_file(models_file: str | Path | None = None) -> ModelsFile:
+    """The whole models file, validated (default: $DEEPPHY_MODELS_FILE, else the shipped file)."""
     path = models_file_path(models_file)
     try:
         data = yaml.safe_load(path.read_text()) or {}
-        return {m.name: m for m in ModelsFile.model_validate(data).models}
+        return ModelsFile.model_validate(data)
     except OSError as e:
         raise ModelsFileError(f"models file {path}: {e.strerror or e}") from None
     except yaml.YAMLError as e:

@@ -37,7 +37,8 @@ from deepphy.models.base import AccessDenied, ModelClient, ModelError, ModelRequ
 from deepphy.models.config import ModelConfig
 from deepphy.models.limiter import Limiter, LocalLimiter
 from deepphy.models.wire import (
-    CONTEXT_HEADER, encode_context, estimate_input_tokens, limit_images, merge_body, parse_retry_after,
+    CONTEXT_HEADER, encode_context, estimate_input_tokens, input_budget, limit_images, merge_body,
+    parse_retry_after,
 )
 from deepphy.seeding import seeded_rng
 
@@ -184,8 +185,9 @@ class HTTPModelClient(ModelClient):
 
     async def complete(self, request: ModelRequest) -> ModelResponse:
         cfg = self.config
-        messages, dropped = limit_images(request.messages, cfg.resolved_max_images)
         max_tokens = cfg.max_tokens or request.max_tokens
+        budget = input_budget(cfg.max_context_tokens, max_tokens)
+        messages, dropped = limit_images(request.messages, cfg.resolved_max_images, budget)
         body = merge_body(self.build_body(request, messages, max_tokens), cfg.extra_body)
         payload = json.dumps(body).encode()
         headers = {"Content-Type": "application/json", **self.static_headers()}
@@ -194,6 +196,10 @@ class HTTPModelClient(ModelClient):
         if self._key is not None:
             headers.update(self.auth_headers(self._key.get_secret_value()))
         estimate_in = estimate_input_tokens(messages)
+        if budget is not None and estimate_in > budget:  # the server would refuse it (vLLM: 400)
+            raise ModelError(f"{self.name}: the prompt's ~{estimate_in} input tokens (every image omitted) and "
+                             f"max_tokens {max_tokens} do not fit max_context_tokens {cfg.max_context_tokens}",
+                             kind="context")
         limiter = self._limiter
         lease_s = cfg.timeouts.request_s + cfg.timeouts.connect_s + 30.0
         session = self._get_session()

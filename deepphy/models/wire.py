@@ -61,24 +61,54 @@ def estimate_input_tokens(messages: list[Message]) -> int:
     return n
 
 
-def limit_images(messages: list[Message], max_images: int) -> tuple[list[Message], int]:
-    """Keep the `max_images` most recent images; each older one becomes a one-line text
-    placeholder (so the text around it still reads). Returns (messages, number dropped)."""
-    total = sum(len(m.images) for m in messages)
-    drop = max(0, total - max_images)
+# A server's context length is a hard limit (vLLM answers 400 past it), and our count is an
+# estimate (characters / 4, an image's pixels / 750), not the server's tokenizer: requests are
+# fitted into this share of the context.
+CONTEXT_SHARE = 0.9
+
+
+def input_budget(max_context_tokens: int | None, max_tokens: int) -> int | None:
+    """The input tokens a request may estimate at on a server with this context length
+    (None: no limit), its reply's max_tokens kept free."""
+    if max_context_tokens is None:
+        return None
+    return int(max_context_tokens * CONTEXT_SHARE) - max_tokens
+
+
+def limit_images(messages: list[Message], max_images: int,
+                 max_input_tokens: int | None = None) -> tuple[list[Message], int]:
+    """Keep the `max_images` most recent images, and fewer while the request's estimated input
+    tokens (`estimate_input_tokens`) exceed `max_input_tokens`; each older image becomes a
+    one-line text placeholder (so the text around it still reads). Returns (messages, number
+    dropped)."""
+    images = [p for m in messages for p in m.content if isinstance(p, ImagePart)]
+    by_count = max(0, len(images) - max_images)
+    drop = by_count
+    if max_input_tokens is not None:
+        cost = [image_tokens(p.image.load()) - text_tokens(_omitted(p, i >= by_count))  # saved by dropping it
+                for i, p in enumerate(images)]
+        total = estimate_input_tokens(messages) - sum(cost[:drop])
+        while total > max_input_tokens and drop < len(images):
+            total -= cost[drop]
+            drop += 1
     if drop == 0:
         return messages, 0
-    out, left = [], drop
+    out, dropped = [], 0
     for m in messages:
         parts = []
         for p in m.content:
-            if isinstance(p, ImagePart) and left > 0:
-                left -= 1
-                parts.append(TextPart(text=f"[image omitted (per-request image limit): {p.image.caption}]"))
+            if isinstance(p, ImagePart) and dropped < drop:
+                parts.append(TextPart(text=_omitted(p, dropped >= by_count)))
+                dropped += 1
             else:
                 parts.append(p)
         out.append(Message(role=m.role, content=parts))
     return out, drop
+
+
+def _omitted(part: ImagePart, for_context: bool) -> str:
+    limit = "context length limit" if for_context else "per-request image limit"
+    return f"[image omitted ({limit}): {part.image.caption}]"
 
 
 def png_b64(png: bytes) -> str:

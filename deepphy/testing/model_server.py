@@ -13,6 +13,9 @@ Routes (real request/response JSON, status codes and headers):
 - POST /admin/reset                            clear arrivals, counters and fault history
 - GET  /health
 
+With --limit-mm-per-prompt / --max-model-len it also refuses, as a vLLM server does, Chat
+Completions requests with more images or more prompt + max_tokens than those limits.
+
 The answer: the server needs the request's RequestContext, which is NOT in the messages
 (a real provider must see exactly the prompt). Clients whose model config sets
 `send_context: true` (allowed only for loopback base URLs) send it in the
@@ -101,6 +104,9 @@ class ServerConfig(BaseModel):
     require_key_env: str | None = None  # when set, requests must carry this env var's key
     record_bodies: int = Field(0, ge=0)
     log_path: str | None = None
+    # A self-hosted server's own limits on Chat Completions (as vLLM enforces them; None: none):
+    max_images_per_prompt: int | None = Field(None, ge=0, description="vLLM --limit-mm-per-prompt (images)")
+    max_model_len: int | None = Field(None, ge=1, description="vLLM --max-model-len: prompt + max_tokens")
 
 
 def _rng(*keys: Any):
@@ -253,6 +259,25 @@ class OpenAIFormat:
             return ApiError(401, "You didn't provide an API key. Provide it in an Authorization header using Bearer auth "
                                  "(Authorization: Bearer YOUR_KEY).")
         return ApiError(401, "Incorrect API key provided.", code="invalid_api_key")
+
+
+def check_server_limits(body: dict, config: ServerConfig) -> None:
+    """A Chat Completions request against a self-hosted server's limits, refused with a 400
+    as vLLM refuses it: more images than --limit-mm-per-prompt, or a prompt whose tokens plus
+    max_tokens exceed --max-model-len (tokens counted as `OpenAIFormat.prompt_tokens` does)."""
+    if config.max_images_per_prompt is not None:
+        images = sum(isinstance(m.get("content"), list) and sum(p["type"] == "image_url" for p in m["content"])
+                     for m in body["messages"])
+        if images > config.max_images_per_prompt:
+            raise BadRequest(f"At most {config.max_images_per_prompt} image(s) may be provided in one prompt; "
+                             f"this one has {images} (--limit-mm-per-prompt)", param="messages")
+    if config.max_model_len is not None:
+        prompt = OpenAIFormat.prompt_tokens(body)
+        reply = body.get("max_completion_tokens") or body.get("max_tokens") or 0
+        if prompt + reply > config.max_model_len:
+            raise BadRequest(f"This model's maximum context length is {config.max_model_len} tokens. However, you "
+                             f"requested {prompt + reply} tokens ({prompt} in the messages, {reply} in the "
+                             "completion). Please reduce the length of the messages or completion.", param="messages")
 
 
 # The Anthropic API versions this server knows.
@@ -610,6 +635,8 @@ class MockServer:
         try:
             body = fmt.normalize(json.loads(raw))
             fmt.validate(body, request)
+            if fmt is OpenAIFormat:
+                check_server_limits(body, cfg)
         except ApiError as e:
             return err(e), None
         except ValueError:
@@ -759,6 +786,10 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--require-key-env", default=None, help="require the key held in this env var")
     ap.add_argument("--record-bodies", type=int, default=0, help="keep the last N request bodies (GET /admin/bodies)")
     ap.add_argument("--log", default=None, help="append one JSON line per request (arrival time, fault, status)")
+    ap.add_argument("--limit-mm-per-prompt", type=int, default=None, metavar="N",
+                    help="refuse Chat Completions requests with more than N images, as vLLM does")
+    ap.add_argument("--max-model-len", type=int, default=None, metavar="TOKENS",
+                    help="refuse Chat Completions requests whose prompt + max_tokens exceed this, as vLLM does")
     a = ap.parse_args(argv)
     config = ServerConfig(
         latency_s=a.latency,
@@ -769,6 +800,8 @@ def main(argv: list[str] | None = None) -> None:
         require_key_env=a.require_key_env,
         record_bodies=a.record_bodies,
         log_path=a.log,
+        max_images_per_prompt=a.limit_mm_per_prompt,
+        max_model_len=a.max_model_len,
     )
 
     async def run() -> None:
