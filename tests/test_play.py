@@ -283,6 +283,46 @@ def test_replay_simulates_the_recorded_actions_and_says_when_it_differs(tmp_path
     assert not film.matches and "differs from the record" in film.note
 
 
+def test_work_off_the_loop_hands_any_error_to_its_caller():
+    """A StopIteration (a `next()` that found nothing) cannot be set on a Future: the caller
+    gets a RuntimeError that says so instead of waiting forever."""
+    from deepphy.play.background import off_loop
+
+    async def main() -> None:
+        with pytest.raises(RuntimeError, match="next raised StopIteration"):
+            await asyncio.wait_for(off_loop(next, iter([])), 30)
+        assert await asyncio.wait_for(off_loop(sum, [1, 2]), 30) == 3
+
+    asyncio.run(main())
+
+
+def test_the_replay_of_a_record_whose_task_is_not_the_runs_answers_with_one_line(tmp_path):
+    """A record naming a task the run does not have (edited, or copied from another run): the
+    replay page (dashboard and play) shows why, instead of a request that never answers."""
+    from deepphy.dashboard.server import Dashboard, make_app as dashboard_app
+    from deepphy.dashboard.source import RunSource
+
+    out = tmp_path / "run"
+    model_run(config(model="scripted", tasks=["flag-03"]), out, push)
+    foreign = json.loads((out / ATTEMPTS).read_text().splitlines()[0]) | {"task": "flag-07"}
+    with open(out / ATTEMPTS, "a") as f:
+        f.write(json.dumps(foreign) + "\n")
+
+    async def main() -> list[tuple[int, str]]:
+        source = RunSource(out)
+        async with TestClient(TestServer(dashboard_app(Dashboard([source])))) as client:
+            answers = []
+            for task in ("flag-07", "flag-03"):
+                response = await asyncio.wait_for(
+                    client.get(f"/api/runs/{source.id}/replay?task={task}&run=0&attempt=1"), 60)
+                answers.append((response.status, await response.text()))
+            return answers
+
+    (status, text), (ok, _) = asyncio.run(main())
+    assert status == 404 and text == "no such attempt: the record's task flag-07 is not one of this run's toy_cart tasks"
+    assert ok == 200
+
+
 def test_an_environment_that_does_not_film_replays_its_key_frames(tmp_path):
     config = RunConfig(env="toy_cart", model="scripted", runs=1, tasks=["flag-03"])
     records = model_run(config, tmp_path / "run", push)
