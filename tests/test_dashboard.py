@@ -126,10 +126,10 @@ def test_episode_shows_stored_images_and_marks_the_rest(run_dir):
     # bytes as the key frames), then the current observation's scene and annotated scene.
     assert all(p["file"] for p in parts)
     history = [f.path for a in records if (a.task, a.run) == (r.task, r.run) and a.attempt < 3 for f in a.key_frames]
-    assert [source.frame_path(p["file"]).read_bytes() for p in parts[:-2]] == [(run_dir / f).read_bytes() for f in history]
+    assert [source.image(p["file"]) for p in parts[:-2]] == [(run_dir / f).read_bytes() for f in history]
     assert [p["name"] for p in parts[-2:]] == ["scene", "annotated"]
     prompt = read_prompt(run_dir, r.task, r.run, r.steps[0].prompt)
-    assert [source.frame_path(p["file"]).read_bytes() for p in parts] == [i.png for m in prompt for i in m.images]
+    assert [source.image(p["file"]) for p in parts] == [i.png for m in prompt for i in m.images]
     with pytest.raises(KeyError):
         source.episode("nosuch", 0)
 
@@ -148,10 +148,12 @@ def test_only_frames_are_served(run_dir):
     frame = read_records(run_dir)[0].key_frames[0].path
     assert source.frame_path(frame) == (run_dir / frame).resolve()
     image = next((run_dir / "images").iterdir())
-    assert source.frame_path(f"images/{image.name}") == image.resolve()
+    assert source.image(f"images/{image.name}") == image.read_bytes()
     for bad in ("config.json", "attempts.jsonl", f"{frame}/../../../config.json", "frames/../config.json",
-                "../../etc/passwd", "/etc/passwd", "frames/nosuch.png"):
+                "../../etc/passwd", "/etc/passwd", "frames/nosuch.png", f"images/{image.name}"):
         assert source.frame_path(bad) is None, bad
+    for bad in (f"images/../images/{image.name}", "images/nosuch.png", f"images/{image.stem}.jpg", "images/" + "0" * 64 + ".png"):
+        assert source.image(bad) is None, bad
 
 
 def test_a_writing_run_is_detected_without_taking_its_lock(run_dir, tmp_path):

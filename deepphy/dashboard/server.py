@@ -27,6 +27,7 @@ from typing import Any
 from aiohttp import web
 
 from deepphy.dashboard.source import RunSource, is_run_dir, run_id, runs_in
+from deepphy.runs.store import IMAGES, RunDirError
 from deepphy.metrics.leaderboard import LeaderboardError, as_dict, leaderboard, not_started
 from deepphy.play import replay
 
@@ -309,8 +310,19 @@ class Dashboard:
             raise web.HTTPNotFound(text=f"no such episode: {e}") from None
 
     async def frame(self, request: web.Request) -> web.StreamResponse:
+        """A key frame (frames/...) or a prompt image (images/<sha256>.png, served only if its
+        bytes hash to its name)."""
         source = self._source(request)
-        path = source.frame_path(request.match_info["path"])
+        rel = request.match_info["path"]
+        if rel.startswith(f"{IMAGES}/"):
+            try:
+                png = await self._call(source, source.image, rel)
+            except RunDirError as e:
+                raise web.HTTPConflict(text=str(e)) from None
+            if png is None:
+                raise web.HTTPNotFound(text="no such image")
+            return web.Response(body=png, content_type="image/png", headers={"Cache-Control": "max-age=3600"})
+        path = source.frame_path(rel)
         if path is None:
             raise web.HTTPNotFound(text="no such frame")
         return web.FileResponse(path, headers={"Cache-Control": "max-age=3600"})  # frames never change
