@@ -232,6 +232,39 @@ def test_http_api_and_live_events(run_dir, tmp_path):
     print(f"SSE update delay after an appended record: {', '.join(f'{d * 1000:.0f} ms' for d in delays)}")
 
 
+@pytest.mark.parametrize("bad", [b'{"env": "iphyre", "task": "support"}', b"x" * (17 * 1024 * 1024)])
+def test_a_bad_line_appended_to_a_watched_run_reaches_the_page(run_dir, tmp_path, bad):
+    """A record arrives with the start of a line that is not one (the page says "loading"
+    meanwhile); the line ends: the page gets the error and the run loaded, not a "loading"
+    that never ends (the poll recorded the error but reported no change, so no view went out)."""
+    copy = tmp_path / "copy"
+    log = copy_run(run_dir, copy, lines=20)
+
+    async def scenario() -> dict:
+        source = RunSource(copy)
+        dashboard = Dashboard([source], poll_s=0.05)
+        async with TestClient(TestServer(make_app(dashboard))) as client:
+            events = await client.get("/api/events")
+            with open(copy / ATTEMPTS, "ab") as f:
+                f.write(log[20] + b"\n" + bad[:10])
+            while True:
+                name, data = await asyncio.wait_for(_next_event(events), 30)
+                if name == "message" and data["run"]["progress"]["attempts"] == 21:
+                    break
+            assert data["run"]["progress"]["loading"] and not data["run"]["errors"]
+            with open(copy / ATTEMPTS, "ab") as f:
+                f.write(bad[10:] + b"\n")
+            while True:
+                name, data = await asyncio.wait_for(_next_event(events), 30)
+                if name == "message" and data["run"]["errors"]:
+                    events.close()
+                    return data["run"]
+
+    view = asyncio.run(scenario())
+    assert not view["progress"]["loading"] and view["progress"]["attempts"] == 21
+    assert re.search("not a valid attempt record|longer than 16 MiB", view["errors"][0]), view["errors"]
+
+
 async def _next_event(response):
     """(event name, data) of the next Server-Sent Event, skipping heartbeats."""
     name, data = "message", None

@@ -138,8 +138,11 @@ class Dashboard:
             pending |= changed
         now = time.monotonic()
         since = now - self._sent_at.get(source.id, 0.0)
-        dirty = self._pending[source.id] is None or bool(self._pending[source.id]) or source.id not in self.views
-        live = self.views.get(source.id, {}).get("progress", {}).get("status") == "running"
+        shown = self.views.get(source.id)
+        # New records, a refused line (the version), or a load that ended (the page said "loading")
+        dirty = (self._pending[source.id] is None or bool(self._pending[source.id]) or shown is None
+                 or shown["version"] != source.version or shown["progress"]["loading"] != source.loading)
+        live = (shown or {}).get("progress", {}).get("status") == "running"
         # A large run's report takes a while: wait twice its cost between views, so that the
         # worker thread is never busy more than a third of the time.
         if not (dirty and since >= 2 * self._cost.get(source.id, 0.0)) and not (live and since >= REFRESH_S):

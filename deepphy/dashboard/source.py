@@ -107,7 +107,7 @@ class RunSource:
         self.inode: int | None = None
         self.log_size = 0
         self.errors: list[str] = []
-        self.version = 0  # bumps whenever records arrive
+        self.version = 0  # bumps whenever what the view shows changes: records arrive, a line is refused
         self.snapshot: dict[str, Any] | None = None  # the live metrics actor's, if one was found
         self._report: tuple[int, dict[str, Any]] | None = None
         self._cells: dict[tuple[str, int], Cell] = {}  # cache; poll() drops what changed
@@ -120,7 +120,8 @@ class RunSource:
 
     def poll(self) -> set[tuple[str, int]] | None:
         """Read what was appended since the last call. Returns the (task, run) episodes that
-        changed, or None if the log was replaced (everything changed)."""
+        changed, or None if the log was replaced (everything changed). A line refused (in
+        `errors`) changes no episode but bumps `version`: the view shows it."""
         log = self.path / ATTEMPTS
         try:
             st = log.stat()
@@ -137,6 +138,7 @@ class RunSource:
             return None if reset else set()
         at = self.offset
         lines = self.tail.read()
+        errors = len(self.errors)
         changed: set[tuple[str, int]] = set()
         for line in lines:
             if line is None:
@@ -168,7 +170,7 @@ class RunSource:
             self._cells.pop(key, None)
             if self._cell(key).state in ("solved", "failed"):
                 self._episode_ends[key] = max(r.timing.finished for r in self.episodes[key].values())
-        if changed:
+        if changed or len(self.errors) != errors:
             self.version += 1
         return None if reset else changed
 
