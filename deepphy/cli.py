@@ -462,9 +462,10 @@ def _shown_path(path: str | None) -> str:
 
 def cmd_dashboard(args: argparse.Namespace) -> int:
     import asyncio
-    import secrets
 
-    from deepphy.dashboard.server import TOKEN_ENV, Dashboard, is_loopback, serve
+    from deepphy import webguard
+
+    from deepphy.dashboard.server import TOKEN_ENV, Dashboard, serve
     from deepphy.dashboard.source import RunSource, is_run_dir, runs_in
 
     if not args.run_dirs and not args.address:
@@ -487,7 +488,7 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
         live.connect(args.address)  # no cluster there: a clear error now, not a page that waits
 
     # Beyond loopback, every request must carry a token (printed with the URL).
-    token = None if is_loopback(args.host) else os.environ.get(TOKEN_ENV) or secrets.token_urlsafe(18)
+    token = webguard.token_for(args.host, TOKEN_ENV)
 
     def announce(url: str) -> None:
         print(f"dashboard: {url}  (Ctrl-C to stop)", flush=True)
@@ -508,9 +509,10 @@ def cmd_play(args: argparse.Namespace) -> int:
     import asyncio
     import getpass
 
+    from deepphy import webguard
     from deepphy.play import background
     from deepphy.play.human import HUMAN_PREFIX, player_model
-    from deepphy.play.server import serve
+    from deepphy.play.server import TOKEN_ENV, serve
     from deepphy.play.session import PlaySession
     from deepphy.runs.store import CONFIG, read_config
 
@@ -536,18 +538,20 @@ def cmd_play(args: argparse.Namespace) -> int:
         raise UserError(str(e)) from None
     out = Path(args.out or f"runs/human-{player}-{config.env}")
     session = PlaySession(config, out)
+    token = webguard.token_for(args.host, TOKEN_ENV)  # beyond loopback, every request must carry it
 
     def announce(url: str) -> None:
         print(f"play: {url}  (open it in a browser; Ctrl-C stops, the same command resumes)", flush=True)
-        if args.host not in ("127.0.0.1", "localhost", "::1"):
-            print(f"note: listening on {args.host}: whoever reaches this port can play in your name", file=sys.stderr)
+        if token:
+            print(f"note: listening on {args.host}: the page asks for the token in this URL; whoever has the URL "
+                  "can play in your name", file=sys.stderr)
 
     def done(progress: dict) -> None:
         print(f"play: {progress['episodes_done']}/{progress['episodes_total']} episodes played, {progress['solved']} "
               f"solved -> {out} (`deepphy report {out}`); the page stays up for replays (Ctrl-C to stop)", flush=True)
 
     try:
-        asyncio.run(serve(session, args.host, args.port, announce, done))
+        asyncio.run(serve(session, args.host, args.port, announce, done, token))
     except OSError as e:
         raise UserError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e} (--port 0 picks a free one)") \
             from None
