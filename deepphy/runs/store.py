@@ -577,8 +577,7 @@ def read_image(path: str | Path, digest: str) -> bytes | None:
     except OSError as e:
         raise RunDirError(f"{path}/{rel} cannot be read ({e.strerror or type(e).__name__})") from None
     if len(png) > MAX_IMAGE_BYTES or image_digest(png) != digest:
-        raise RunDirError(f"{path}/{rel} is damaged: its bytes do not hash to its name (a resume of the run writes "
-                          "it again)")
+        raise RunDirError(f"{path}/{rel} is damaged: its bytes do not hash to its name")
     return png
 
 
