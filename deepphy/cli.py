@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -47,7 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--seed", type=int, help="seed of MOCK and of any sampling; default 0")
     run.add_argument("--out", help=f"run directory (with --suite: the suite root); default {DEFAULT_OUT} "
                      "(with --suite: runs/<suite name>)")
-    run.add_argument("--tasks", help="comma-separated task ids (default: the evaluation set)")
+    run.add_argument("--tasks", help="task ids, separated by commas or spaces or lines, as `deepphy envs --tasks ENV` "
+                                     "prints them (default: the evaluation set)")
     run.add_argument("--limit", type=int, help="only the first N tasks")
     run.add_argument("--max-attempts", type=int, help="attempts per task (default: the protocol's)")
     run.add_argument("--env-option", action="append", metavar="KEY=VALUE",
@@ -82,7 +84,9 @@ def build_parser() -> argparse.ArgumentParser:
         fmt.add_argument(f"--{flag}", action="store_true", help=f"print {flag} instead of a text table")
 
     envs = sub.add_parser("envs", help="list environments and their task counts")
-    envs.add_argument("--tasks", metavar="ENV", help="list the task ids of one environment")
+    envs.add_argument("--tasks", metavar="ENV", help="list the task ids of one environment, one a line (they paste "
+                                                     "into `run --tasks`)")
+    envs.add_argument("--groups", action="store_true", help="with --tasks: each id's group after a tab")
 
     watch = sub.add_parser("watch", help="stream the live progress of a run, or of every run on a Ray cluster")
     watch.add_argument("run_dir", nargs="?", metavar="RUN_DIR",
@@ -108,7 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
                       "default: your login name")
     play.add_argument("--out", help="run directory (an existing one resumes; its options are kept); default "
                       "runs/human-<player>-<env>")
-    play.add_argument("--tasks", help="comma-separated task ids (default: the evaluation set)")
+    play.add_argument("--tasks", help="task ids, separated by commas or spaces or lines (default: the evaluation set)")
     play.add_argument("--limit", type=int, help="only the first N tasks")
     play.add_argument("--runs", type=int, help="repetitions of every task; default 1")
     play.add_argument("--max-attempts", type=int, help="attempts per task (default: the protocol's, as models get)")
@@ -219,7 +223,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     config = _validated(lambda: RunConfig(
         env=args.env or "iphyre", model=model, format=args.format or "vla",
         runs=args.runs if args.runs is not None else 3, seed=args.seed or 0,
-        tasks=[t for t in args.tasks.split(",") if t] if args.tasks else None,
+        tasks=_task_ids(args.tasks),
         limit=args.limit, max_attempts=args.max_attempts, env_options=_env_options(args.env_option or []),
     ))
     warn_retired([config.model], runtime.models_file)
@@ -371,6 +375,13 @@ def cmd_leaderboard(args: argparse.Namespace) -> int:
     return 0
 
 
+def _task_ids(text: str | None) -> list[str] | None:
+    """`--tasks`: ids separated by commas, spaces or lines (`deepphy envs --tasks ENV`'s output
+    pastes in); None when none are given."""
+    ids = [t for t in re.split(r"[,\s]+", text or "") if t]
+    return ids or None
+
+
 def cmd_envs(args: argparse.Namespace) -> int:
     from collections import Counter
 
@@ -379,7 +390,7 @@ def cmd_envs(args: argparse.Namespace) -> int:
     if args.tasks:
         cls = get_spec(args.tasks).load()
         for t in cls.tasks(cls.Options()):
-            print(f"{t.id}\t{t.group}")
+            print(f"{t.id}\t{t.group}" if args.groups else t.id)
         return 0
     print(f"{'env':10} {'title':12} {'tasks':>6}  {'planning':11} {'K':>3} {'steps':>5}  groups")
     for name, spec in specs().items():
@@ -500,9 +511,10 @@ def _shown_path(path: str | None) -> str:
 
 def cmd_dashboard(args: argparse.Namespace) -> int:
     import asyncio
-    import secrets
 
-    from deepphy.dashboard.server import TOKEN_ENV, Dashboard, is_loopback, serve
+    from deepphy import webguard
+
+    from deepphy.dashboard.server import TOKEN_ENV, Dashboard, serve
     from deepphy.dashboard.source import RunSource, is_run_dir, runs_in
 
     if not args.run_dirs and not args.address:
@@ -525,7 +537,7 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
         live.connect(args.address)  # no cluster there: a clear error now, not a page that waits
 
     # Beyond loopback, every request must carry a token (printed with the URL).
-    token = None if is_loopback(args.host) else os.environ.get(TOKEN_ENV) or secrets.token_urlsafe(18)
+    token = webguard.token_for(args.host, TOKEN_ENV)
 
     def announce(url: str) -> None:
         print(f"dashboard: {url}  (Ctrl-C to stop)", flush=True)
@@ -546,16 +558,17 @@ def cmd_play(args: argparse.Namespace) -> int:
     import asyncio
     import getpass
 
+    from deepphy import webguard
     from deepphy.play import background
     from deepphy.play.human import HUMAN_PREFIX, player_model
-    from deepphy.play.server import serve
+    from deepphy.play.server import TOKEN_ENV, serve
     from deepphy.play.session import PlaySession
     from deepphy.runs.store import CONFIG, read_config
 
     if not 0 <= args.port <= 65535:
         raise UserError(f"--port must be 0..65535, got {args.port}")
     asked = {"env": args.env, "runs": args.runs, "seed": args.seed, "limit": args.limit,
-             "max_attempts": args.max_attempts, "tasks": [t for t in args.tasks.split(",") if t] if args.tasks else None,
+             "max_attempts": args.max_attempts, "tasks": _task_ids(args.tasks),
              "env_options": _env_options(args.env_option) or None}
     asked = {k: v for k, v in asked.items() if v is not None}
     stored = read_config(args.out) if args.out and (Path(args.out) / CONFIG).exists() else None
@@ -574,18 +587,20 @@ def cmd_play(args: argparse.Namespace) -> int:
         raise UserError(str(e)) from None
     out = Path(args.out or f"runs/human-{player}-{config.env}")
     session = PlaySession(config, out)
+    token = webguard.token_for(args.host, TOKEN_ENV)  # beyond loopback, every request must carry it
 
     def announce(url: str) -> None:
         print(f"play: {url}  (open it in a browser; Ctrl-C stops, the same command resumes)", flush=True)
-        if args.host not in ("127.0.0.1", "localhost", "::1"):
-            print(f"note: listening on {args.host}: whoever reaches this port can play in your name", file=sys.stderr)
+        if token:
+            print(f"note: listening on {args.host}: the page asks for the token in this URL; whoever has the URL "
+                  "can play in your name", file=sys.stderr)
 
     def done(progress: dict) -> None:
         print(f"play: {progress['episodes_done']}/{progress['episodes_total']} episodes played, {progress['solved']} "
               f"solved -> {out} (`deepphy report {out}`); the page stays up for replays (Ctrl-C to stop)", flush=True)
 
     try:
-        asyncio.run(serve(session, args.host, args.port, announce, done))
+        asyncio.run(serve(session, args.host, args.port, announce, done, token))
     except OSError as e:
         raise UserError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e} (--port 0 picks a free one)") \
             from None

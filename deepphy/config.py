@@ -9,6 +9,10 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from deepphy.chat import PromptFormat
 
 DEFAULT_OUT = "runs/demo"
+# What a run may ask for; its records are held to the same bounds (deepphy/runs/records.py).
+RUNS_MAX = 100_000  # repetitions of every task
+ATTEMPTS_MAX = 1_000  # attempts per task (the protocol's K is 10 at most)
+SEED_MIN, SEED_MAX = -(2**63), 2**63 - 1  # a 64-bit integer, as datasets and NumPy hold it
 
 # Which prompts a run is given: "paper", information-equivalent to the DeepPHY paper's
 # (docs/comparability.md); "before-parity", deepphy's prompts before that (numeric state
@@ -27,11 +31,11 @@ class RunConfig(BaseModel):
     env: str = "iphyre"
     model: str = "mock"
     format: PromptFormat = PromptFormat.VLA
-    runs: int = Field(3, ge=1, description="independent repetitions of every task")
-    seed: int = 0
+    runs: int = Field(3, ge=1, le=RUNS_MAX, description="independent repetitions of every task")
+    seed: int = Field(0, ge=SEED_MIN, le=SEED_MAX)
     tasks: list[str] | None = Field(None, description="task ids; default: the environment's evaluation set")
     limit: int | None = Field(None, ge=1, description="only the first N tasks of the set")
-    max_attempts: int | None = Field(None, ge=1, description="attempts per task; default: the protocol's K")
+    max_attempts: int | None = Field(None, ge=1, le=ATTEMPTS_MAX, description="attempts per task; default: the protocol's K")
     env_options: dict[str, Any] = Field(default_factory=dict)
     temperature: float = 0.1
     max_tokens: int = Field(1024, ge=1)

@@ -26,8 +26,8 @@ from deepphy.envs.base import Planning
 from deepphy.runs.records import AttemptRecord, KeyFrame
 from deepphy.prompts.base import CURRENT_OBSERVATION
 from deepphy.runs.store import (
-    FRAMES, OLD_IMAGE_PLACEHOLDER, RunDirError, check_records, episode_prompts, image_file, inside, read_config,
-    read_records, stored_image, stored_prompt_json,
+    FRAMES, OLD_IMAGE_PLACEHOLDER, RunDirError, check_confined, check_records, episode_prompts, inside, read_config,
+    read_image, read_records, stored_image, stored_prompt_json,
 )
 
 DATA_FILE = "data/decisions.parquet"
@@ -145,18 +145,19 @@ class _Images:
 
     def add_stored(self, digest: str) -> str | None:
         """The dataset path of the run directory's images/<digest>.png (copied once, also
-        across run directories: the same image is one file), or None if absent."""
+        across run directories: the same image is one file), or None if absent. RunDirError
+        if it is damaged (see `read_image`)."""
         key = f"sha256:{digest}"
         if key not in self.copied:
-            src = image_file(self.run_dir, digest)
             dest = f"{BY_DIGEST}/{digest}.png"
-            if src is None:
-                self.copied[key] = None
-            else:
-                if not (self.staging / dest).exists():
-                    (self.staging / dest).parent.mkdir(parents=True, exist_ok=True)
-                    shutil.copyfile(src, self.staging / dest)
+            if (self.staging / dest).exists():  # from another run directory: the same bytes, checked then
                 self.copied[key] = dest
+            else:
+                png = read_image(self.run_dir, digest)
+                if png is not None:
+                    (self.staging / dest).parent.mkdir(parents=True, exist_ok=True)
+                    (self.staging / dest).write_bytes(png)
+                self.copied[key] = None if png is None else dest
         return self.copied[key]
 
 
@@ -221,6 +222,7 @@ def rows_of(run_dir: Path, source: str, staging: Path, layout: str = "decisions"
     `staging`) and the image count."""
     from deepphy.runner import resolve
 
+    check_confined(run_dir)  # images/ or frames/ linked out of the run: refused (read, they would be empty)
     images = _Images(run_dir, staging, source)
     prompts: dict[str, Any] = {}
     rows = []

@@ -28,8 +28,9 @@ second implementation). One Gymnasium episode is one attempt at one task, as in
   actions give bit-identical observations and outcomes. `reset(options={"task": id})`
   picks one for that episode.
 - `render()` (render_mode "rgb_array") returns the current scene, and after the last step
-  the environment's final key frame (the scene after it; PHYRE and I-PHYRE: their strip
-  of four frames over the attempt).
+  the environment's final key frame (the scene after it), always at the observation's size
+  (video recorders need one shape): PHYRE's and I-PHYRE's final key frame, a strip of
+  frames over the attempt, is scaled down into it.
 - `env_options={...}`: the environment's options, as `deepphy run --env-option`.
 """
 
@@ -43,7 +44,7 @@ import numpy as np
 from gymnasium import spaces
 
 from deepphy.envs import (
-    ActionSpace, EnvOptions, Environment, InvalidAction, Observation, Task, get_spec, specs,
+    ActionSpace, EnvOptions, Environment, Image, InvalidAction, Observation, Task, get_spec, specs,
 )
 from deepphy.envs.parsing import MAX_REPLY_CHARS
 
@@ -169,7 +170,7 @@ class DeepPhyEnv(gymnasium.Env):
         if result.observation is not None and not self._done:
             self._show(result.observation)
         elif result.key_frames:
-            self._final_frame = result.key_frames[-1].to_array()
+            self._final_frame = _final_picture(result.key_frames, self.observation_space["images"].shape[1:])
         reward = self.invalid_reward if result.invalid_reason else SUCCESS_REWARD if success and self._done else 0.0
         return self._obs(), reward, bool(result.terminated), bool(result.truncated or out_of_decisions), info
 
@@ -203,6 +204,26 @@ def warm_up(env_cls: type[Environment], options: EnvOptions, tasks: Sequence[Tas
     if key not in _warmed:
         env_cls.warm_up(options, tasks)
         _warmed.add(key)
+
+
+def _final_picture(key_frames: Sequence[Image], shape: tuple[int, ...]) -> np.ndarray:
+    """The scene after the last step at the observation's `shape` (H, W, 3): the last key frame
+    of that size (the settled scene), else the last key frame scaled into it, centred on its
+    own background colour (PHYRE's and I-PHYRE's strips of frames over the attempt)."""
+    import cv2
+
+    frames = [f.to_array() for f in key_frames]
+    same = [f for f in frames if f.shape == shape]
+    if same:
+        return same[-1]
+    frame, (height, width) = frames[-1], shape[:2]
+    scale = min(height / frame.shape[0], width / frame.shape[1])
+    h, w = max(1, round(frame.shape[0] * scale)), max(1, round(frame.shape[1] * scale))
+    canvas = np.empty(shape, np.uint8)
+    canvas[:] = frame[0, 0]
+    top, left = (height - h) // 2, (width - w) // 2
+    canvas[top:top + h, left:left + w] = cv2.resize(frame, (w, h), interpolation=cv2.INTER_AREA)
+    return canvas
 
 
 def _images(observation: Observation) -> np.ndarray:

@@ -516,7 +516,8 @@ async def _metrics_started(ready, scheduler, runtime: RuntimeOptions) -> None:
     """Wait for the metrics actor's first call; if it never returns, stop the run (as a
     fatal error: the episodes' attempts in flight finish and are recorded, then it raises)."""
     try:
-        await asyncio.wait_for(ready, timeout=runtime.step_timeout_s)
+        async with asyncio.timeout(runtime.step_timeout_s):  # not `wait_for`: see _print_snapshot
+            await ready
     except asyncio.TimeoutError:
         scheduler.fatal = scheduler.fatal or ClusterUnavailable(
             f"the metrics actor did not start within {runtime.step_timeout_s:g} s (an overloaded machine, or no "
@@ -535,15 +536,21 @@ async def _progress(scheduler, metrics, phase: list[str], stream) -> None:
 
 
 async def _print_snapshot(scheduler, metrics, phase: str, stream, final: bool) -> None:
+    # Deadlines by `asyncio.timeout`, not `asyncio.wait_for`: Python 3.11's `wait_for` returns
+    # the result of a call that completes in the same turn of the loop as a cancellation and
+    # drops the cancellation (fixed in 3.12), so `_drive` stopping the view could wait for it
+    # forever while it went on printing.
     try:
         # The driver's own counters go to the metrics actor, so `deepphy watch` sees them too.
         scheduler.send_summaries()
         try:  # requests waiting for the rate limit or before a retry: a run that seems stuck says why
-            waiting = await asyncio.wait_for(scheduler.model.activity(), timeout=5)
+            async with asyncio.timeout(5):
+                waiting = await scheduler.model.activity()
         except Exception:  # noqa: BLE001 - a restarting model worker: no figures this time
             waiting = {}
         metrics.update.remote({**scheduler.activity(), **waiting, "phase": phase})  # also while warming up
-        snap = await asyncio.wait_for(metrics.snapshot.remote(), timeout=10)
+        async with asyncio.timeout(10):
+            snap = await metrics.snapshot.remote()
     except Exception:  # noqa: BLE001 - progress is best effort
         return
     line = format_progress(snap)

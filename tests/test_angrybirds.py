@@ -559,7 +559,7 @@ def test_missing_every_shot_runs_out_of_birds(env):
     results = [env.step(miss) for _ in range(3)]
     assert [r.done for r in results] == [False, False, True]
     last = results[-1]
-    assert last.truncated and not last.terminated and not last.success and last.stars == 0 and last.score == 0
+    assert last.terminated and not last.truncated and not last.success and last.stars == 0 and last.score == 0
     assert "level lost" in last.feedback and results[0].observation.text.splitlines()[4] == \
         "Shots used: 1. Score so far: 0."
     assert [f.name for f in results[0].key_frames] == ["shot_1_flight", "shot_1"]

@@ -65,6 +65,22 @@ def test_envs_lists_iphyre(capsys):
     assert " 40 " in line and "in_advance" in line
 
 
+def test_envs_task_ids_paste_into_run_tasks(capsys):
+    """`deepphy envs --tasks ENV` prints ids, one a line (`--groups`: the group after a tab),
+    and its lines paste into `run --tasks` as they are (the tab made an unknown task id)."""
+    assert main(["envs", "--tasks", "iphyre"]) == 0
+    ids = capsys.readouterr().out.splitlines()
+    assert len(ids) == 40 and ids[:2] == ["support", "hinder"] and not any("\t" in i or " " in i for i in ids)
+    assert main(["envs", "--tasks", "iphyre", "--groups"]) == 0
+    assert capsys.readouterr().out.splitlines()[0] == "support\tbasic"
+    pasted = "\n".join(ids[:3]) + "\n"  # as `--tasks "$(deepphy envs --tasks iphyre | head -3)"` gives it
+    assert main(["run", "--env", "iphyre", "--tasks", pasted, "--runs", "1", "--dry-run"]) == 0
+    table = capsys.readouterr().out.splitlines()
+    assert table[2].split()[:4] == ["iphyre", "mock", "vla", "3"], table
+    assert main(["run", "--env", "iphyre", "--tasks", "support, hinder", "--runs", "1", "--dry-run"]) == 0
+    assert capsys.readouterr().out.splitlines()[2].split()[3] == "2"
+
+
 def test_show_writes_the_images_a_model_sees(tmp_path, capsys):
     assert main(["show", "--env", "iphyre", "--task", "support", "--out", str(tmp_path)]) == 0
     names = sorted(p.name for p in tmp_path.iterdir())

@@ -126,10 +126,10 @@ def test_episode_shows_stored_images_and_marks_the_rest(run_dir):
     # bytes as the key frames), then the current observation's scene and annotated scene.
     assert all(p["file"] for p in parts)
     history = [f.path for a in records if (a.task, a.run) == (r.task, r.run) and a.attempt < 3 for f in a.key_frames]
-    assert [source.frame_path(p["file"]).read_bytes() for p in parts[:-2]] == [(run_dir / f).read_bytes() for f in history]
+    assert [source.image(p["file"]) for p in parts[:-2]] == [(run_dir / f).read_bytes() for f in history]
     assert [p["name"] for p in parts[-2:]] == ["scene", "annotated"]
     prompt = read_prompt(run_dir, r.task, r.run, r.steps[0].prompt)
-    assert [source.frame_path(p["file"]).read_bytes() for p in parts] == [i.png for m in prompt for i in m.images]
+    assert [source.image(p["file"]) for p in parts] == [i.png for m in prompt for i in m.images]
     with pytest.raises(KeyError):
         source.episode("nosuch", 0)
 
@@ -148,10 +148,12 @@ def test_only_frames_are_served(run_dir):
     frame = read_records(run_dir)[0].key_frames[0].path
     assert source.frame_path(frame) == (run_dir / frame).resolve()
     image = next((run_dir / "images").iterdir())
-    assert source.frame_path(f"images/{image.name}") == image.resolve()
+    assert source.image(f"images/{image.name}") == image.read_bytes()
     for bad in ("config.json", "attempts.jsonl", f"{frame}/../../../config.json", "frames/../config.json",
-                "../../etc/passwd", "/etc/passwd", "frames/nosuch.png"):
+                "../../etc/passwd", "/etc/passwd", "frames/nosuch.png", f"images/{image.name}"):
         assert source.frame_path(bad) is None, bad
+    for bad in (f"images/../images/{image.name}", "images/nosuch.png", f"images/{image.stem}.jpg", "images/" + "0" * 64 + ".png"):
+        assert source.image(bad) is None, bad
 
 
 def test_a_writing_run_is_detected_without_taking_its_lock(run_dir, tmp_path):
@@ -222,6 +224,39 @@ def test_http_api_and_live_events(run_dir, tmp_path):
             events.close()
 
     asyncio.run(scenario())
+
+
+@pytest.mark.parametrize("bad", [b'{"env": "iphyre", "task": "support"}', b"x" * (17 * 1024 * 1024)])
+def test_a_bad_line_appended_to_a_watched_run_reaches_the_page(run_dir, tmp_path, bad):
+    """A record arrives with the start of a line that is not one (the page says "loading"
+    meanwhile); the line ends: the page gets the error and the run loaded, not a "loading"
+    that never ends (the poll recorded the error but reported no change, so no view went out)."""
+    copy = tmp_path / "copy"
+    log = copy_run(run_dir, copy, lines=20)
+
+    async def scenario() -> dict:
+        source = RunSource(copy)
+        dashboard = Dashboard([source], poll_s=0.05)
+        async with TestClient(TestServer(make_app(dashboard))) as client:
+            events = await client.get("/api/events")
+            with open(copy / ATTEMPTS, "ab") as f:
+                f.write(log[20] + b"\n" + bad[:10])
+            while True:
+                name, data = await asyncio.wait_for(_next_event(events), 30)
+                if name == "message" and data["run"]["progress"]["attempts"] == 21:
+                    break
+            assert data["run"]["progress"]["loading"] and not data["run"]["errors"]
+            with open(copy / ATTEMPTS, "ab") as f:
+                f.write(bad[10:] + b"\n")
+            while True:
+                name, data = await asyncio.wait_for(_next_event(events), 30)
+                if name == "message" and data["run"]["errors"]:
+                    events.close()
+                    return data["run"]
+
+    view = asyncio.run(scenario())
+    assert not view["progress"]["loading"] and view["progress"]["attempts"] == 21
+    assert re.search("not a valid attempt record|longer than 16 MiB", view["errors"][0]), view["errors"]
 
 
 async def _next_event(response):

@@ -67,6 +67,36 @@ def test_observation_action_reward_and_render():
         env.step("fail()")
 
 
+@pytest.mark.parametrize("name, task, action", [
+    ("iphyre", "support", '[{"time": 1.0, "index": 0}]'),
+    ("phyre", "within_00000-000", "Cell: 5, Radius: 4"),
+    ("angrybirds", "s1_l01", None),  # drawn: shots until the birds run out or the pig is dead
+])
+def test_render_keeps_its_shape_after_the_last_step(name, task, action):
+    """A video recorder stacks render()'s pictures: after the last step it is the final scene
+    at the observation's size (I-PHYRE's 600x600 became a 300x1212 strip)."""
+    env = gymnasium.make(dgym.env_id(name), task=task, render_mode="rgb_array")
+    obs, _ = env.reset(seed=1)
+    env.action_space.seed(1)
+    pictures, done = [env.render()], False
+    while not done:
+        obs, _, terminated, truncated, _ = env.step(action or env.action_space.sample())
+        pictures.append(env.render())
+        done = terminated or truncated
+    assert {p.shape for p in pictures} == {obs["images"].shape[1:]} and all(p.dtype == np.uint8 for p in pictures)
+    assert not np.array_equal(pictures[-1], pictures[-2])  # the scene after the last step, not the one before it
+    assert np.stack(pictures).shape[0] == len(pictures)
+
+
+def test_angry_birds_out_of_birds_is_a_terminal_state():
+    """Every bird launched and a pig alive: the level is lost, a state of the game with no
+    action left (`terminated`), not an episode cut short (`truncated`)."""
+    env = gymnasium.make("deepphy/angrybirds-v0", task="s1_l01")
+    env.reset(seed=0)
+    ends = [env.step("shoot(angle=90, power=0.3)")[2:4] for _ in range(3)]  # straight up: each falls back
+    assert ends == [(False, False), (False, False), (True, False)]
+
+
 def test_an_invalid_action_ends_the_episode_with_the_documented_reward():
     env = gymnasium.make("deepphy/cuttherope-v0", task="b1_l01")
     env.reset(seed=0)

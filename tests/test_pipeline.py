@@ -1,5 +1,6 @@
 """The full pipeline on a real local Ray runtime and the real I-PHYRE."""
 
+import asyncio
 import os
 import signal
 import threading
@@ -205,6 +206,50 @@ def test_workers_that_die_while_starting_stop_the_run_with_one_line_and_it_resum
     monkeypatch.undo()
     assert evaluate(CONFIG, tmp_path, RUNTIME).complete
     assert views(tmp_path) == views(baseline)
+
+
+def test_the_progress_view_stops_when_its_snapshot_arrives_as_the_run_ends():
+    """The driver's last act is to stop its progress view and wait for it. Seen (1 run in 8
+    against a faulty endpoint): the view's snapshot call came back in the same turn of the
+    loop as the stop, Python 3.11's `asyncio.wait_for` returned the snapshot and dropped the
+    cancellation, and the view printed `episodes 0/1` every 10 s while the run waited for it
+    forever. The actor handles are stand-ins here: only they let the test choose that turn."""
+    import io
+    from types import SimpleNamespace
+
+    from deepphy.metrics.live import LiveMetrics
+    from deepphy.runner import _progress
+
+    class Method:  # an actor method: `.remote()` returns what the driver awaits
+        def __init__(self, answer=lambda: None) -> None:
+            self.answer = answer
+
+        def remote(self, *args):
+            return self.answer()
+
+    async def scenario() -> bool:
+        asked, answer = asyncio.Event(), asyncio.get_running_loop().create_future()
+
+        def snapshot():
+            asked.set()
+            return answer
+
+        async def waiting() -> dict:
+            return {}
+
+        metrics = SimpleNamespace(update=Method(), snapshot=Method(snapshot))
+        scheduler = SimpleNamespace(send_summaries=lambda: None, activity=lambda: {},
+                                    model=SimpleNamespace(activity=waiting))
+        view = asyncio.ensure_future(_progress(scheduler, metrics, ["running"], io.StringIO()))
+        await asyncio.wait_for(asked.wait(), 30)
+        answer.set_result(LiveMetrics(1, 1).snapshot())  # the snapshot comes back ...
+        view.cancel()  # ... in the turn that stops the view
+        await asyncio.wait({view}, timeout=30)
+        stopped = view.cancelled()
+        view.cancel()
+        return stopped
+
+    assert asyncio.run(scenario()), "the progress view went on after it was stopped"
 
 
 def test_wm_format_records_predictions(ray_cluster, tmp_path):

@@ -136,7 +136,7 @@ def test_the_server_takes_answers_from_its_page_only(tmp_path):
 
     async def main() -> None:
         play = asyncio.ensure_future(session.play())
-        async with TestClient(TestServer(make_app(PlayServer(session, "127.0.0.1")), host="127.0.0.1")) as client:
+        async with TestClient(TestServer(make_app(PlayServer(session)), host="127.0.0.1")) as client:
             while session.desk.pending is None:
                 await asyncio.sleep(0.005)
             state = await (await client.get("/api/state")).json()
@@ -198,13 +198,80 @@ def test_the_server_takes_answers_from_its_page_only(tmp_path):
     ("127.0.0.1", "http://localhost:8710", "localhost:8710", True),
     ("127.0.0.1", "http://evil.example:8710", "evil.example:8710", False),  # a name that resolves here
     ("127.0.0.1", "http://evil.example", "127.0.0.1:8710", False),
+    ("127.0.0.2", "http://127.0.0.2:8710", "127.0.0.2:8710", True),  # loopback is 127.0.0.0/8
+    ("127.0.0.2", "http://evil.example:8710", "evil.example:8710", False),
+    ("::1", "http://[::1]:8710", "[::1]:8710", True),
     ("0.0.0.0", "http://10.1.2.3:8710", "10.1.2.3:8710", True),  # --host: reached from another machine
     ("0.0.0.0", "http://evil.example", "10.1.2.3:8710", False),
+    ("0.0.0.0", None, "10.1.2.3:8710", True),  # not a browser's cross-site request (and it has the token)
 ])
 def test_which_pages_may_answer(listening, origin, host, ours):
-    from types import SimpleNamespace
+    from deepphy import webguard
 
-    assert PlayServer._ours(SimpleNamespace(host=listening), origin, host) is ours
+    token = webguard.token_for(listening, "DEEPPHY_TEST_NO_SUCH_VARIABLE")
+    assert (token is None) is (listening != "0.0.0.0")
+    assert webguard.from_page(origin, host, token) is ours
+
+
+@pytest.mark.parametrize("listen", ["127.0.0.2", "0.0.0.0"])
+def test_play_on_any_address_answers_only_its_own_page(deepphy_cmd, tmp_path, listen):
+    """`--host 127.0.0.2` is loopback too: a foreign Host and a rebinding Origin (a page whose
+    name resolves here) are refused, as on 127.0.0.1 (the check trusted three literal names).
+    Beyond loopback every request needs the token printed with the URL (there was none)."""
+    import re
+    import signal
+    import urllib.error
+    import urllib.request
+
+    proc = subprocess.Popen([*deepphy_cmd, "play", "--env", "phyre", "--tasks", "within_00000-000", "--player", "ana",
+                             "--out", str(tmp_path / "p"), "--host", listen, "--port", "0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        line = proc.stdout.readline()
+        port, token = re.search(r"http://[^/\s]+:(\d+)/(?:\?token=(\S+))?", line).groups()
+        assert (token is None) is (listen == "127.0.0.2"), line
+        base = f"http://{'127.0.0.2' if listen == '127.0.0.2' else '127.0.0.1'}:{port}"
+        evil = f"evil.example:{port}"
+
+        def call(path: str, headers: dict | None = None, body: dict | None = None) -> tuple[int, bytes]:
+            request = urllib.request.Request(base + path, headers=headers or {},
+                                             data=None if body is None else json.dumps(body).encode())
+            if body is not None:
+                request.add_header("Content-Type", "application/json")
+            try:
+                with browser.open(request, timeout=30) as r:
+                    return r.status, r.read()
+            except urllib.error.HTTPError as e:
+                return e.code, e.read()
+
+        browser = urllib.request.build_opener(urllib.request.HTTPCookieProcessor())  # keeps the token's cookie
+        mine = {"Authorization": f"Bearer {token}"} if token else {}
+        for _ in range(600):  # the first decision waits for the person
+            status, body = call("/api/state", mine)
+            assert status == 200, body
+            if json.loads(body)["decision"]:
+                break
+            time.sleep(0.1)
+        answer = {"key": json.loads(body)["decision"]["key"], "text": "Cell: 5, Radius: 4"}
+        if token:
+            assert call("/api/state")[0] == 401 and call(f"/api/state?token={token}x")[0] == 401
+            assert call(f"/?token={token}")[0] == 200  # the URL printed: the page, the token kept in a cookie
+            assert call("/api/state")[0] == 200
+            mine = {}  # the page's own requests: the cookie
+        else:
+            assert call("/api/state", {"Host": evil})[0] == 403
+            assert call("/api/answer", {"Host": evil, "Origin": f"http://{evil}"}, answer)[0] == 403  # rebinding
+        assert call("/api/answer", {**mine, "Origin": f"http://{evil}"}, answer)[0] == 403
+        status, body = call("/api/answer", {**mine, "Origin": base}, answer)
+        assert status == 200 and json.loads(body)["action"] == "Cell: 5, Radius: 4"
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
 
 
 @pytest.mark.parametrize("args, message", [
@@ -281,6 +348,46 @@ def test_replay_simulates_the_recorded_actions_and_says_when_it_differs(tmp_path
     log.write_text(lines[0] + "\n" + json.dumps(record) + "\n")
     film = film_attempt(tmp_path / "run", "within_00000-000", 0, 2)
     assert not film.matches and "differs from the record" in film.note
+
+
+def test_work_off_the_loop_hands_any_error_to_its_caller():
+    """A StopIteration (a `next()` that found nothing) cannot be set on a Future: the caller
+    gets a RuntimeError that says so instead of waiting forever."""
+    from deepphy.play.background import off_loop
+
+    async def main() -> None:
+        with pytest.raises(RuntimeError, match="next raised StopIteration"):
+            await asyncio.wait_for(off_loop(next, iter([])), 30)
+        assert await asyncio.wait_for(off_loop(sum, [1, 2]), 30) == 3
+
+    asyncio.run(main())
+
+
+def test_the_replay_of_a_record_whose_task_is_not_the_runs_answers_with_one_line(tmp_path):
+    """A record naming a task the run does not have (edited, or copied from another run): the
+    replay page (dashboard and play) shows why, instead of a request that never answers."""
+    from deepphy.dashboard.server import Dashboard, make_app as dashboard_app
+    from deepphy.dashboard.source import RunSource
+
+    out = tmp_path / "run"
+    model_run(config(model="scripted", tasks=["flag-03"]), out, push)
+    foreign = json.loads((out / ATTEMPTS).read_text().splitlines()[0]) | {"task": "flag-07"}
+    with open(out / ATTEMPTS, "a") as f:
+        f.write(json.dumps(foreign) + "\n")
+
+    async def main() -> list[tuple[int, str]]:
+        source = RunSource(out)
+        async with TestClient(TestServer(dashboard_app(Dashboard([source])))) as client:
+            answers = []
+            for task in ("flag-07", "flag-03"):
+                response = await asyncio.wait_for(
+                    client.get(f"/api/runs/{source.id}/replay?task={task}&run=0&attempt=1"), 60)
+                answers.append((response.status, await response.text()))
+            return answers
+
+    (status, text), (ok, _) = asyncio.run(main())
+    assert status == 404 and text == "no such attempt: the record's task flag-07 is not one of this run's toy_cart tasks"
+    assert ok == 200
 
 
 def test_an_environment_that_does_not_film_replays_its_key_frames(tmp_path):

@@ -5,6 +5,7 @@ input images."""
 
 from __future__ import annotations
 
+import asyncio
 import hashlib
 import json
 import os
@@ -25,7 +26,7 @@ from deepphy.models.providers import OpenAIChatClient
 from deepphy.models.wire import CONTEXT_HEADER, decode_context
 from deepphy.prompts.base import CURRENT_OBSERVATION
 from deepphy.runner import evaluate
-from deepphy.runs.store import RunDirError, image_file, read_prompt, read_records, stored_prompt_json
+from deepphy.runs.store import ATTEMPTS, RunDirError, read_image, read_prompt, read_records, stored_prompt_json
 from deepphy.testing.model_server import ServerConfig, ServerThread
 
 RUNTIME = RuntimeOptions(progress=False, env_workers=1)
@@ -227,21 +228,107 @@ def test_stored_images_are_validated_and_confined(cuttherope_run, tmp_path):
     image = next(p["image"] for m in stored for p in m["content"] if isinstance(p, dict))
     target = run / "images" / f"{image}.png"
     target.write_bytes(target.read_bytes()[:-10])  # altered: its bytes no longer match its name
-    with pytest.raises(RunDirError, match="missing or altered"):
+    with pytest.raises(RunDirError, match="is damaged: its bytes do not hash to its name"):
         read_prompt(run, *episode, digest)
     secret = tmp_path / "secret.png"
     shutil.copyfile(cuttherope_run / "images" / f"{image}.png", secret)
     target.unlink()
     target.symlink_to(secret)  # leads out of the run directory: not read
-    assert image_file(run, image) is None
-    with pytest.raises(RunDirError, match="missing or altered"):
+    with pytest.raises(RunDirError, match="leads out of the run directory"):
+        read_image(run, image)
+    with pytest.raises(RunDirError, match="leads out of the run directory"):
+        read_prompt(run, *episode, digest)
+    target.unlink()
+    with pytest.raises(RunDirError, match="is missing"):
         read_prompt(run, *episode, digest)
     for bad in ("../config", "x" * 20, "0" * 19 + "/"):
         with pytest.raises(RunDirError):
             read_prompt(run, *episode, bad)
-    assert image_file(run, "../" + image) is None
+    with pytest.raises(RunDirError, match="is not an image digest"):
+        read_image(run, "../" + image)
     # An edited prompt whose image reference is not a digest is not a stored prompt.
     line = json.dumps({"digest": digest, "messages": stored})
     rewrite_prompt(run, *episode, digest, re.sub(r'"image": "[0-9a-f]{64}"', '"image": "../../secret"', line, count=1))
     with pytest.raises(RunDirError, match="not a stored prompt"):
         read_prompt(run, *episode, digest)
+
+
+def _first_image(run: Path, task: str, run_number: int) -> str:
+    """The digest of the first image of the episode's first prompt (the task's first scene)."""
+    first = next(r for r in read_records(run) if (r.task, r.run) == (task, run_number))
+    stored = stored_prompt_json(run, task, run_number, first.steps[0].prompt)
+    return next(p["image"] for m in stored for p in m["content"] if isinstance(p, dict))
+
+
+def test_a_damaged_image_is_refused_by_every_reader_and_a_resume_writes_it_again(cuttherope_run, tmp_path, capsys,
+                                                                                 caplog):
+    """An image whose bytes no longer hash to its name: the dashboard does not serve it (one
+    line, and the episode says why), the export refuses the run in one line and writes
+    nothing, a prompt that shows it is not rebuilt; a resume that shows it again writes it
+    again (it has its bytes), after which every prompt of the run is whole."""
+    from aiohttp.test_utils import TestClient, TestServer
+
+    from deepphy.cli import main
+    from deepphy.dashboard.server import Dashboard, make_app
+    from deepphy.dashboard.source import RunSource
+
+    run = tmp_path / "run"
+    shutil.copytree(cuttherope_run, run)
+    task = read_records(run)[0].task
+    image = _first_image(run, task, 0)
+    (run / "images" / f"{image}.png").write_bytes(b"\x89PNG not the scene")
+    damaged = f"{run}/images/{image}.png is damaged: its bytes do not hash to its name"
+
+    with pytest.raises(RunDirError, match="is damaged"):
+        read_prompt(run, task, 0, read_records(run)[0].steps[0].prompt)
+    assert main(["export", str(run), "--out", str(tmp_path / "ds")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"deepphy: error: {damaged}") and err.count("\n") == 1, err
+    assert not (tmp_path / "ds").exists()
+
+    async def dashboard() -> tuple[int, str, list[dict]]:
+        source = RunSource(run)
+        async with TestClient(TestServer(make_app(Dashboard([source])))) as client:
+            served = await client.get(f"/files/{source.id}/images/{image}.png")
+            episode = await (await client.get(f"/api/runs/{source.id}/episode?task={task}&run=0")).json()
+            parts = [p for prompt in episode["prompts"].values() for m in prompt for p in m["content"]
+                     if p["type"] == "image"]
+            return served.status, await served.text(), parts
+
+    status, text, parts = asyncio.run(dashboard())
+    assert status == 409 and text.startswith(damaged)
+    shown = [p for p in parts if p.get("problem")]
+    assert shown and all(p["file"] is None and p["problem"].startswith(damaged) for p in shown)
+    assert any(p["file"] for p in parts)  # the intact ones are shown
+
+    # The resume of an episode that shows the image again (the task's second run, set aside)
+    lines = (run / ATTEMPTS).read_text().splitlines()
+    (run / ATTEMPTS).write_text("".join(line + "\n" for line in lines if json.loads(line)["task"] != task
+                                        or json.loads(line)["run"] != 1))
+    config = RunConfig.model_validate_json((run / "config.json").read_text())
+    assert evaluate(config, run, RUNTIME).complete
+    assert f"{run}/images/{image}.png did not hash to its name; written again" in caplog.text
+    assert hashlib.sha256((run / "images" / f"{image}.png").read_bytes()).hexdigest() == image
+    assert len(read_records(run)) == len(lines)
+    for r in read_records(run):
+        for step in r.steps:
+            read_prompt(run, r.task, r.run, step.prompt)  # every prompt whole again, the earlier run's too
+
+
+def test_a_run_whose_images_lead_out_is_refused_by_the_export_as_by_a_resume(cuttherope_run, tmp_path, capsys):
+    """images/ symlinked out of the run: the export said nothing and exported every row
+    without its images; now it refuses in one line, as a resume does."""
+    from deepphy.cli import main
+
+    run = tmp_path / "run"
+    shutil.copytree(cuttherope_run, run)
+    shutil.move(run / "images", tmp_path / "elsewhere")
+    (run / "images").symlink_to(tmp_path / "elsewhere")
+    said = f"{run}/images leads out of the run directory (a symlink?); refusing to use it"
+    assert main(["export", str(run), "--out", str(tmp_path / "ds")]) == 2
+    assert capsys.readouterr().err == f"deepphy: error: {said}\n"
+    assert not (tmp_path / "ds").exists()
+    config = RunConfig.model_validate_json((run / "config.json").read_text())
+    with pytest.raises(RunDirError) as refused:  # what a resume says
+        evaluate(config, run, RUNTIME)
+    assert str(refused.value) == said

@@ -400,3 +400,37 @@ def test_prompts_of_a_run_from_before_the_logs_are_still_read(tmp_path):
     (tmp_path / "prompts" / f"{a}.json").write_text('{"role": "user"}')
     with pytest.raises(RunDirError, match=f"prompts/{a}.json is not a stored prompt"):
         stored_prompt_json(tmp_path, "support", 0, a, logged)
+
+
+# -- the record's bounds ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("field, value", [
+    ("stars", 10**30), ("run", 10**30), ("input_tokens", 10**30), ("attempt", 10**30), ("seed", 2**64),
+    ("retries", -1),
+])
+def test_a_record_outside_the_bounds_is_refused_with_its_line_by_every_reader(tmp_path, capsys, field, value):
+    """Integers beyond any real record (export overflowed its columns with a traceback; a
+    run of 10**30 was silently left out of the report) and a negative count: report,
+    export, leaderboard, a resume and the dashboard each refuse the line, in one line."""
+    from dashboard_support import synthetic_run
+
+    from deepphy.cli import main
+    from deepphy.dashboard.source import RunSource
+
+    run = synthetic_run(tmp_path / "run", env="iphyre", runs=1, limit=2)
+    lines = (run / ATTEMPTS).read_text().splitlines()
+    last = json.loads(lines[-1])
+    where = last["model_stats"] if field == "retries" else last["model_stats"]["usage"] if field == "input_tokens" else last
+    where[field] = value
+    (run / ATTEMPTS).write_text("\n".join([*lines[:-1], json.dumps(last)]) + "\n")
+    said = f"{run / ATTEMPTS}:{len(lines)} is not a valid attempt record"
+    for command in (["report", str(run)], ["export", str(run), "--out", str(tmp_path / "ds")],
+                    ["leaderboard", str(run)], ["run", "--env", "iphyre", "--runs", "1", "--limit", "2", "--out", str(run),
+                                                "--no-progress"]):
+        assert main(command) == 2, command
+        err = capsys.readouterr().err
+        assert err.startswith(f"deepphy: error: {said}") and err.count("\n") == 1, err
+    assert not (tmp_path / "ds").exists()
+    source = RunSource(run)
+    source.poll()
+    assert len(source.records) == len(lines) - 1 and "is not a valid attempt record" in source.errors[0]

@@ -9,16 +9,14 @@ live on that cluster are found by their metrics actors and their run directories
 A directory of runs given (a suite root) also has a leaderboard, made by the code of
 `deepphy leaderboard` from the reports the runs' views already hold (and the manifest's
 cells not started), and pushed again whenever one of its runs changed.
-Who may read it: `guard` (a loopback Host without a token; the token beyond loopback).
+Who may read it: `deepphy.webguard` (a loopback Host without a token; the token beyond loopback).
 """
 
 from __future__ import annotations
 
 import asyncio
-import ipaddress
 import json
 import logging
-import secrets
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -26,7 +24,9 @@ from typing import Any
 
 from aiohttp import web
 
+from deepphy import webguard
 from deepphy.dashboard.source import RunSource, is_run_dir, run_id, runs_in
+from deepphy.runs.store import IMAGES, RunDirError
 from deepphy.metrics.leaderboard import LeaderboardError, as_dict, leaderboard, not_started
 from deepphy.play import replay
 
@@ -137,8 +137,11 @@ class Dashboard:
             pending |= changed
         now = time.monotonic()
         since = now - self._sent_at.get(source.id, 0.0)
-        dirty = self._pending[source.id] is None or bool(self._pending[source.id]) or source.id not in self.views
-        live = self.views.get(source.id, {}).get("progress", {}).get("status") == "running"
+        shown = self.views.get(source.id)
+        # New records, a refused line (the version), or a load that ended (the page said "loading")
+        dirty = (self._pending[source.id] is None or bool(self._pending[source.id]) or shown is None
+                 or shown["version"] != source.version or shown["progress"]["loading"] != source.loading)
+        live = (shown or {}).get("progress", {}).get("status") == "running"
         # A large run's report takes a while: wait twice its cost between views, so that the
         # worker thread is never busy more than a third of the time.
         if not (dirty and since >= 2 * self._cost.get(source.id, 0.0)) and not (live and since >= REFRESH_S):
@@ -309,8 +312,19 @@ class Dashboard:
             raise web.HTTPNotFound(text=f"no such episode: {e}") from None
 
     async def frame(self, request: web.Request) -> web.StreamResponse:
+        """A key frame (frames/...) or a prompt image (images/<sha256>.png, served only if its
+        bytes hash to its name)."""
         source = self._source(request)
-        path = source.frame_path(request.match_info["path"])
+        rel = request.match_info["path"]
+        if rel.startswith(f"{IMAGES}/"):
+            try:
+                png = await self._call(source, source.image, rel)
+            except RunDirError as e:
+                raise web.HTTPConflict(text=str(e)) from None
+            if png is None:
+                raise web.HTTPNotFound(text="no such image")
+            return web.Response(body=png, content_type="image/png", headers={"Cache-Control": "max-age=3600"})
+        path = source.frame_path(rel)
         if path is None:
             raise web.HTTPNotFound(text="no such frame")
         return web.FileResponse(path, headers={"Cache-Control": "max-age=3600"})  # frames never change
@@ -382,45 +396,9 @@ TOKEN_COOKIE = "deepphy_dashboard_token"
 TOKEN_ENV = "DEEPPHY_DASHBOARD_TOKEN"  # a fixed token, instead of a new one at every start
 
 
-def is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
-
-
-def guard(token: str | None):
-    """Who may read the dashboard. Without a token (listening on loopback only): requests
-    whose Host is a loopback name, so that a web page elsewhere cannot read it through a
-    name that resolves to 127.0.0.1 (DNS rebinding). With one (listening beyond loopback):
-    requests that carry it, as `?token=` (the printed URL; then kept in a cookie for the
-    page's own requests), the cookie, or `Authorization: Bearer`."""
-
-    @web.middleware
-    async def check(request: web.Request, handler):
-        if token is None:
-            if not is_loopback(request.url.host or ""):
-                raise web.HTTPForbidden(text="this dashboard answers only to a loopback Host "
-                                             "(127.0.0.1 or localhost)")
-            return await handler(request)
-        bearer = request.headers.get("Authorization", "").removeprefix("Bearer ").strip()
-        given = request.query.get("token") or request.cookies.get(TOKEN_COOKIE) or bearer
-        if not secrets.compare_digest(given.encode(), token.encode()):
-            raise web.HTTPUnauthorized(text="this dashboard needs its access token: open the URL it printed")
-        if "token" in request.query and request.method == "GET" and request.path == "/":
-            response = web.HTTPFound("/")  # the token leaves the address bar for a cookie
-            response.set_cookie(TOKEN_COOKIE, token, httponly=True, samesite="Strict", path="/")
-            raise response
-        return await handler(request)
-
-    return check
-
-
 def make_app(dashboard: Dashboard, token: str | None = None) -> web.Application:
-    """`token`: required of every request (see `guard`); None serves loopback Hosts only."""
-    app = web.Application(middlewares=[guard(token)])
+    """`token`: required of every request (deepphy.webguard); None serves loopback Hosts only."""
+    app = web.Application(middlewares=[webguard.middleware(token, TOKEN_COOKIE, "this dashboard")])
     app.add_routes([
         web.get("/", dashboard.index),
         web.get("/api/state", dashboard.api_state),

@@ -21,8 +21,8 @@ from deepphy.metrics.report import build_report, setting, table, table_key
 from deepphy.runs.records import AttemptRecord
 from deepphy.runs.status import read_status, writer_holds_lock
 from deepphy.runs.store import (
-    ATTEMPTS, CONFIG, FRAMES, IMAGES, OLD_IMAGE_PLACEHOLDER, RunDirError, episode_prompts, image_file, inside,
-    read_config, stored_image, stored_prompt_json,
+    ATTEMPTS, CONFIG, FRAMES, IMAGE_DIGEST, IMAGES, OLD_IMAGE_PLACEHOLDER, RunDirError, episode_prompts, inside,
+    read_config, read_image, stored_image, stored_prompt_json,
 )
 
 # Bytes of the log consumed per poll: a huge log loads in slices, so the page shows
@@ -107,7 +107,7 @@ class RunSource:
         self.inode: int | None = None
         self.log_size = 0
         self.errors: list[str] = []
-        self.version = 0  # bumps whenever records arrive
+        self.version = 0  # bumps whenever what the view shows changes: records arrive, a line is refused
         self.snapshot: dict[str, Any] | None = None  # the live metrics actor's, if one was found
         self._report: tuple[int, dict[str, Any]] | None = None
         self._cells: dict[tuple[str, int], Cell] = {}  # cache; poll() drops what changed
@@ -120,7 +120,8 @@ class RunSource:
 
     def poll(self) -> set[tuple[str, int]] | None:
         """Read what was appended since the last call. Returns the (task, run) episodes that
-        changed, or None if the log was replaced (everything changed)."""
+        changed, or None if the log was replaced (everything changed). A line refused (in
+        `errors`) changes no episode but bumps `version`: the view shows it."""
         log = self.path / ATTEMPTS
         try:
             st = log.stat()
@@ -137,6 +138,7 @@ class RunSource:
             return None if reset else set()
         at = self.offset
         lines = self.tail.read()
+        errors = len(self.errors)
         changed: set[tuple[str, int]] = set()
         for line in lines:
             if line is None:
@@ -168,7 +170,7 @@ class RunSource:
             self._cells.pop(key, None)
             if self._cell(key).state in ("solved", "failed"):
                 self._episode_ends[key] = max(r.timing.finished for r in self.episodes[key].values())
-        if changed:
+        if changed or len(self.errors) != errors:
             self.version += 1
         return None if reset else changed
 
@@ -295,10 +297,11 @@ class RunSource:
             logged = episode_prompts(self.path, task, run)  # read once for the whole episode
         except RunDirError:
             logged = {}  # its prompts are shown as missing
+        images: dict[str, str | None] = {}  # what is wrong with each image, checked once for the episode
         for r in records:
             for s in r.steps:
                 if s.prompt not in prompts:
-                    prompts[s.prompt] = self._prompt(task, run, s.prompt, logged)
+                    prompts[s.prompt] = self._prompt(task, run, s.prompt, logged, images)
             attempts.append(r.model_dump(mode="json"))
         return {
             "run_id": self.id, "task": task, "run": run, "group": self.tasks[self.task_index[task]].group,
@@ -307,10 +310,12 @@ class RunSource:
             "attempts": attempts, "prompts": prompts,
         }
 
-    def _prompt(self, task: str, run: int, digest: str, logged: dict[str, list]) -> list[dict[str, Any]] | None:
+    def _prompt(self, task: str, run: int, digest: str, logged: dict[str, list],
+                images: dict[str, str | None]) -> list[dict[str, Any]] | None:
         """The prompt's messages (`logged`: the episode's prompt log), each image resolved to
         its stored file: images/<sha256>.png (runs before images/ kept only history key
-        frames, under frames/<task>/ by name). None if it is missing or malformed."""
+        frames, under frames/<task>/ by name), or what is wrong with it (`images`: found so
+        far, by digest; "" when it is fine). None if the prompt is missing or malformed."""
         try:
             messages = stored_prompt_json(self.path, task, run, digest, logged)
         except RunDirError:
@@ -322,9 +327,15 @@ class RunSource:
                 ref = stored_image(text)
                 if ref is not None:
                     digest, name, caption = ref
-                    stored = image_file(self.path, digest) is not None
+                    if digest not in images:
+                        try:
+                            images[digest] = "" if read_image(self.path, digest) is not None else None
+                        except RunDirError as e:
+                            images[digest] = str(e)
+                    problem = images[digest]
                     parts.append({"type": "image", "name": name, "caption": caption,
-                                  "file": f"{IMAGES}/{digest}.png" if stored else None})
+                                  "file": f"{IMAGES}/{digest}.png" if problem == "" else None,
+                                  **({"problem": problem} if problem else {})})
                     continue
                 image = OLD_IMAGE_PLACEHOLDER.match(text)
                 if image is None:
@@ -339,13 +350,20 @@ class RunSource:
         return out
 
     def frame_path(self, rel: str) -> Path | None:
-        """A stored image under frames/ or images/ of this run directory (resolved inside it:
-        symlinks out of the directory are not followed), or None."""
+        """A key frame under frames/ of this run directory (resolved inside it: symlinks out of
+        the directory are not followed), or None. (Prompt images: `image`.)"""
         target = inside(self.path, rel)
-        if target is None or target.suffix != ".png" or not (
-                target.is_relative_to(self.path / FRAMES) or target.is_relative_to(self.path / IMAGES)):
+        if target is None or target.suffix != ".png" or not target.is_relative_to(self.path / FRAMES):
             return None
         return target if target.is_file() else None
+
+    def image(self, rel: str) -> bytes | None:
+        """The bytes of a prompt image, images/<sha256>.png, checked against its name
+        (`read_image`: RunDirError if damaged); None if `rel` names no stored image."""
+        name = rel.removeprefix(f"{IMAGES}/").removesuffix(".png")
+        if f"{IMAGES}/{name}.png" != rel or not IMAGE_DIGEST.match(name):
+            return None
+        return read_image(self.path, name)
 
 
 

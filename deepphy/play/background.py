@@ -29,10 +29,15 @@ async def off_loop(fn: Callable[..., Any], *args: Any) -> Any:
     def settle(outcome: Any, failed: bool) -> None:
         if future.done():  # the awaiting coroutine was cancelled
             return
-        if failed:
-            future.set_exception(outcome)
-        else:
+        if not failed:
             future.set_result(outcome)
+            return
+        try:
+            future.set_exception(outcome)
+        except TypeError:  # StopIteration (a stray `next()`): a Future refuses it, and the awaiting coroutine would wait forever
+            error = RuntimeError(f"{getattr(fn, '__name__', 'call')} raised {type(outcome).__name__}")
+            error.__cause__ = outcome
+            future.set_exception(error)
 
     def run() -> None:
         try:

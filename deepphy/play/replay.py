@@ -28,7 +28,7 @@ from deepphy.envs.base import FILM_FPS, Environment
 from deepphy.play.background import off_loop
 from deepphy.play.human import remember
 from deepphy.runs.records import AttemptRecord, StepRecord
-from deepphy.runs.store import read_config, read_records
+from deepphy.runs.store import RunDirError, read_config, read_records
 
 STATIC = Path(__file__).parent / "static"
 JPEG_QUALITY = 85
@@ -68,7 +68,8 @@ class Film:
 
 def film_attempt(run_dir: str | Path, task_id: str, run: int, attempt: int) -> Film:
     """Replay attempt `attempt` of `task_id` in repetition `run` of a run directory.
-    KeyError if the run directory holds no such attempt."""
+    KeyError if the run directory holds no such attempt, or its task is not the run's;
+    RunDirError if the directory cannot be read."""
     from deepphy.runner import resolve
 
     config = read_config(run_dir)
@@ -76,7 +77,9 @@ def film_attempt(run_dir: str | Path, task_id: str, run: int, attempt: int) -> F
     if record is None:
         raise KeyError(f"no attempt {attempt} of {task_id} run {run} in {run_dir}")
     spec, tasks, _ = resolve(config)
-    task = next(t for t in tasks if t.id == task_id)
+    task = next((t for t in tasks if t.id == task_id), None)
+    if task is None:  # a record the run could not have made (edited, or copied from another run)
+        raise KeyError(f"the record's task {task_id} is not one of this run's {config.env} tasks")
     env_cls = spec.load()
     env = env_cls(env_cls.Options(**config.env_options))
     observation = env.reset(task)
@@ -164,7 +167,9 @@ def add_routes(app: web.Application, run_dir_of: Callable[[str], Path | None]) -
             task, run, attempt = request.query["task"], int(request.query["run"]), int(request.query["attempt"])
             made = await films.get(run_dir, task, run, attempt)
         except (KeyError, ValueError) as e:
-            raise web.HTTPNotFound(text=f"no such attempt: {e}") from None
+            raise web.HTTPNotFound(text=f"no such attempt: {e.args[0] if e.args else e}") from None
+        except RunDirError as e:  # the page shows the line
+            raise web.HTTPConflict(text=str(e)) from None
         base = f"/api/runs/{request.match_info['run']}/replay/{made.id}"
         return web.json_response(made.view(lambda i: f"{base}/{i}.jpg"))
 

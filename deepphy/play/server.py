@@ -1,10 +1,11 @@
 """The play page's web server (aiohttp): the page, the session's state as JSON and
 Server-Sent Events, the images of the waiting prompt, the person's answers, replays.
 
-Bound to 127.0.0.1 by default, and then answering only requests whose Host names this
-machine. Requests that change something (an answer) must come from the page itself: a JSON
-body, and an Origin (when the browser sends one) that is this server as the request reached
-it, so another web site open in the same browser cannot answer for the person.
+Bound to 127.0.0.1 by default. Who may use it: `deepphy.webguard`, as for the dashboard (on
+loopback, requests whose Host names this machine; beyond it, those that carry the token printed
+with the URL). Requests that change something (an answer) must come from the page itself: a
+JSON body, and an Origin (when the browser sends one) that is this server as the request
+reached it, so another web site open in the same browser cannot answer for the person.
 """
 
 from __future__ import annotations
@@ -13,10 +14,10 @@ import asyncio
 import json
 from pathlib import Path
 from typing import Any, Callable
-from urllib.parse import urlsplit
 
 from aiohttp import web
 
+from deepphy import webguard
 from deepphy.dashboard.source import run_id
 from deepphy.envs import InvalidAction
 from deepphy.play import replay
@@ -25,14 +26,16 @@ from deepphy.play.session import PlaySession
 
 STATIC = Path(__file__).parent / "static"
 HEARTBEAT_S = 15.0
-LOOPBACK_NAMES = {"127.0.0.1", "localhost", "::1"}
+TOKEN_COOKIE = "deepphy_play_token"
+TOKEN_ENV = "DEEPPHY_PLAY_TOKEN"  # a fixed token, instead of a new one at every start
 
 
 class PlayServer:
-    def __init__(self, session: PlaySession, host: str) -> None:
+    def __init__(self, session: PlaySession, token: str | None = None) -> None:
+        """`token`: required of every request (`webguard.token_for`: None on loopback)."""
         self.session = session
         self.desk = session.desk
-        self.host = host
+        self.token = token
         self.run_id = run_id(session.path)
 
     # -- pages and state ------------------------------------------------------------------
@@ -94,8 +97,7 @@ class PlayServer:
     # -- answers --------------------------------------------------------------------------
 
     async def _body(self, request: web.Request) -> tuple[str, str]:
-        origin = request.headers.get("Origin")
-        if origin is not None and not self._ours(origin, request.host):
+        if not webguard.from_page(request.headers.get("Origin"), request.host, self.token):
             raise web.HTTPForbidden(text="answers come from the play page only")
         if request.content_type != "application/json":
             raise web.HTTPUnsupportedMediaType(text="send JSON")
@@ -109,14 +111,6 @@ class PlayServer:
         if len(text) > MAX_ANSWER_CHARS:
             raise web.HTTPBadRequest(text=f"an answer has at most {MAX_ANSWER_CHARS} characters")
         return key, text
-
-    def _ours(self, origin: str, host: str) -> bool:
-        """An Origin naming this server as the request reached it; on loopback, by a name of
-        this machine (a page of another site whose name resolves here is not ours)."""
-        parts = urlsplit(origin)
-        if parts.netloc != host:
-            return False
-        return self.host not in LOOPBACK_NAMES or (parts.hostname or "") in LOOPBACK_NAMES
 
     async def check(self, request: web.Request) -> web.Response:
         """Whether text is an action of the waiting decision: its canonical text, or the reason."""
@@ -147,19 +141,6 @@ def sse(event: str, payload: Any) -> bytes:
     return f"event: {event}\ndata: {json.dumps(payload, separators=(',', ':'))}\n\n".encode()
 
 
-def loopback_only(server: PlayServer):
-    """Listening on loopback, requests must name this machine (Host): a web page elsewhere
-    whose name resolves here (DNS rebinding) reads and answers nothing."""
-
-    @web.middleware
-    async def check(request: web.Request, handler):
-        if server.host in LOOPBACK_NAMES and urlsplit(f"//{request.host}").hostname not in LOOPBACK_NAMES:
-            raise web.HTTPForbidden(text="this page answers only to a loopback Host (127.0.0.1, localhost)")
-        return await handler(request)
-
-    return check
-
-
 def _index(text: str) -> int:
     """A picture's index in a URL: a whole number from 0 (ValueError otherwise)."""
     if not text.isdigit():
@@ -168,7 +149,8 @@ def _index(text: str) -> int:
 
 
 def make_app(server: PlayServer) -> web.Application:
-    app = web.Application(client_max_size=64 * 1024, middlewares=[loopback_only(server)])
+    app = web.Application(client_max_size=64 * 1024,
+                          middlewares=[webguard.middleware(server.token, TOKEN_COOKIE, "this page")])
     app.add_routes([
         web.get("/", server.index),
         web.get("/api/state", server.api_state),
@@ -188,17 +170,18 @@ def make_app(server: PlayServer) -> web.Application:
 
 
 async def serve(session: PlaySession, host: str, port: int, announce: Callable[[str], None],
-                done: Callable[[dict[str, Any]], None]) -> None:
+                done: Callable[[dict[str, Any]], None], token: str | None = None) -> None:
     """Serve the page while the session plays, and after (replays) until cancelled.
-    `announce(url)` is called once the socket listens, before the environment loads;
-    `done(progress)` once every episode is played."""
-    runner = web.AppRunner(make_app(PlayServer(session, host)), access_log=None)
+    `announce(url)` is called once the socket listens, before the environment loads (the URL
+    carries `token`, required of every request beyond loopback); `done(progress)` once every
+    episode is played."""
+    runner = web.AppRunner(make_app(PlayServer(session, token)), access_log=None)
     await runner.setup()
     site = web.TCPSite(runner, host, port)
     await site.start()
     bound = runner.addresses[0]
     shown = f"[{bound[0]}]" if ":" in bound[0] else bound[0]
-    announce(f"http://{shown}:{bound[1]}/")
+    announce(f"http://{shown}:{bound[1]}/" + (f"?token={token}" if token else ""))
     try:
         await session.play()
         done(session.state()["progress"])

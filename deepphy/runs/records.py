@@ -1,13 +1,32 @@
-"""Attempt records: one per (task, run, attempt), the unit the run store keeps and metrics read."""
+"""Attempt records: one per (task, run, attempt), the unit the run store keeps and metrics read.
+
+Every number of a record is bounded, far beyond what deepphy writes and within what its
+readers hold (a 32-bit column for counts, 64 bits for tokens and the seed): a record outside
+the bounds is not one of ours, and every reader refuses it with its line (`deepphy repair`
+sets it aside) instead of overflowing or ignoring it.
+
+    run        0 .. RUNS_MAX - 1 (100,000 repetitions)    attempt   1 .. ATTEMPTS_MAX (1,000)
+    step       1 .. STEPS_MAX (10,000 decisions)          stars     0 .. STARS_MAX (3)
+    seed       a 64-bit integer                           tokens    0 .. TOKENS_MAX (10**12) each, per attempt
+    cost_usd   0 or more, finite                          counts    0 .. COUNT_MAX (2**31 - 1): reply_cut,
+                                                                     retries, model_errors, images_dropped
+"""
 
 from __future__ import annotations
 
+import math
 from typing import Any, Sequence
 
-from pydantic import BaseModel, Field, TypeAdapter
+from pydantic import BaseModel, Field, TypeAdapter, field_validator
 
 from deepphy.chat import Usage
+from deepphy.config import ATTEMPTS_MAX, RUNS_MAX, SEED_MAX, SEED_MIN
 from deepphy.envs.base import SAFE_ID
+
+STEPS_MAX = 10_000  # decisions of one attempt (the environments take 15 at most)
+STARS_MAX = 3  # the games' three stars
+TOKENS_MAX = 10**12  # input (or output) tokens of one attempt
+COUNT_MAX = 2**31 - 1  # any other count
 
 # A record names files of its run directory; these patterns keep it to its own kinds of file
 # (the store also resolves every path it reads inside the directory: symlinks cannot lead out).
@@ -18,10 +37,10 @@ FRAME = r"^frames/" + SAFE_ID.pattern[1:-1] + r"/[A-Za-z0-9][A-Za-z0-9._-]{0,200
 class StepRecord(BaseModel):
     """One decision: what was asked, what came back, what it did."""
 
-    step: int = Field(ge=1)
+    step: int = Field(ge=1, le=STEPS_MAX)
     prompt: str = Field(pattern=DIGEST)  # digest of the prompt; its text is in the episode's prompt log
     raw_output: str  # the reply, cut to its last MAX_REPLY_CHARS characters (deepphy/envs/parsing.py)
-    reply_cut: int = 0  # characters cut from the start of an over-long reply
+    reply_cut: int = Field(0, ge=0, le=COUNT_MAX)  # characters cut from the start of an over-long reply
     prediction: str | None = None  # WM format only
     predicted_outcome: str | None = None  # WM: "success" | "failure" as stated; None if not stated
     action: dict[str, Any] | None = None  # the parsed action; None if invalid
@@ -52,25 +71,37 @@ class ModelStats(BaseModel):
     """Provider-side facts; with a real model these vary between identical runs."""
 
     usage: Usage = Field(default_factory=Usage)
-    retries: int = 0  # transport retries, those of requests that failed for good included
-    model_errors: int = 0  # requests that failed for good; each re-queued the attempt
-    images_dropped: int = 0  # oldest images left out of requests to meet the provider's image limit
+    retries: int = Field(0, ge=0, le=COUNT_MAX)  # transport retries, those of requests that failed for good included
+    model_errors: int = Field(0, ge=0, le=COUNT_MAX)  # requests that failed for good; each re-queued the attempt
+    images_dropped: int = Field(0, ge=0, le=COUNT_MAX)  # oldest images left out of requests to meet the provider's image limit
+
+    @field_validator("usage")
+    @classmethod
+    def _bounded(cls, usage: Usage) -> Usage:
+        """An attempt's usage within the record's bounds (`Usage` itself also carries a
+        provider's answer and a run's totals)."""
+        for name in ("input_tokens", "output_tokens"):
+            if not 0 <= getattr(usage, name) <= TOKENS_MAX:
+                raise ValueError(f"{name} must be 0..{TOKENS_MAX:,}, got {getattr(usage, name)}"[:120])
+        if not (math.isfinite(usage.cost_usd) and usage.cost_usd >= 0):
+            raise ValueError(f"cost_usd must be a finite amount of 0 or more, got {usage.cost_usd}")
+        return usage
 
 
 class AttemptRecord(BaseModel):
     env: str
     task: str = Field(pattern=SAFE_ID.pattern)
     group: str = ""
-    run: int = Field(ge=0)
-    attempt: int = Field(ge=1)  # 1-based
+    run: int = Field(ge=0, lt=RUNS_MAX)
+    attempt: int = Field(ge=1, le=ATTEMPTS_MAX)  # 1-based
     model: str
     format: str
-    seed: int
+    seed: int = Field(ge=SEED_MIN, le=SEED_MAX)
     steps: list[StepRecord]
     success: bool
     invalid_reason: str | None = None  # set when the attempt ended on an invalid action
     truncated: bool = False  # the attempt ran out of time or decisions (the environment says so)
-    stars: int | None = None
+    stars: int | None = Field(None, ge=0, le=STARS_MAX)
     score: float | None = None
     key_frames: list[KeyFrame] = Field(default_factory=list)
     feedback: str = ""  # outcome in words, shown as history in later attempts

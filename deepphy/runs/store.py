@@ -38,6 +38,7 @@ from __future__ import annotations
 import errno
 import fcntl
 import json
+import logging
 import os
 import re
 import shutil
@@ -56,10 +57,13 @@ from deepphy.messages import one_line, validation_message
 from deepphy.prompts import image_digest, prompt_as_json
 from deepphy.runs.records import DIGEST, AttemptRecord, episode_finished
 
+log = logging.getLogger(__name__)
+
 PROMPTS_REMEMBERED = 10_000  # prompts and images known to be on disk without asking the file system
 # A prompt is KBs (the replies its history repeats are cut at 32,768 characters each): a
 # longer line of a prompt log, or a longer prompts/<digest>.json, is not ours and is not read.
 MAX_PROMPT_BYTES = 16 * 1024 * 1024
+MAX_IMAGE_BYTES = 64 * 1024 * 1024  # a prompt image is KBs (a few MB at most): a larger file is not ours
 TAIL_BLOCK = 64 * 1024  # read backwards in blocks of this size to find a torn line's start
 CONFIG = "config.json"
 ATTEMPTS = "attempts.jsonl"
@@ -129,7 +133,6 @@ class RunStore:
             raise RunDirError(f"{path} exists and is not a directory")
         if not path.exists():
             return
-        root = path.resolve()
         try:
             entries = {p.name for p in path.iterdir()}
         except OSError as e:
@@ -138,9 +141,7 @@ class RunStore:
         if CONFIG not in entries and foreign:
             raise RunDirError(f"{path} is not empty and holds no run (it has {', '.join(foreign[:3])}"
                               f"{', ...' if len(foreign) > 3 else ''}); choose another --out")
-        escaped = sorted(name for name in entries & OWN_ENTRIES if inside(root, name) is None)
-        if escaped:
-            raise RunDirError(f"{path}/{escaped[0]} leads out of the run directory (a symlink?); refusing to use it")
+        check_confined(path, entries)
         if CONFIG in entries:
             previous = read_config(path)
             if previous.prompts != config.prompts:
@@ -317,12 +318,19 @@ class RunStore:
             if image.file is None:
                 raise OSError("no file to link")
             os.link(image.file, target)  # atomic by itself: the name comes with the whole (written) file
-        except FileExistsError:
-            pass  # stored before (content-addressed: the same bytes)
         except OSError:
-            if not os.path.exists(target):
+            if not os.path.lexists(target):
+                atomic_write(target, image.load())
+            elif not self._image_intact(digest):  # stored before, and damaged since: these are its bytes
+                log.warning("%s/%s/%s.png did not hash to its name; written again", self.path, IMAGES, digest)
                 atomic_write(target, image.load())
         _remember(self._images, digest)
+
+    def _image_intact(self, digest: str) -> bool:
+        try:
+            return read_image(self._root, digest) is not None
+        except RunDirError:  # damaged, or a link out of the run: replaced (the rename replaces a link, not its target)
+            return False
 
     def frame_image(self, rel: str, caption: str) -> Image:
         # By file: a waiting prompt holds the path, not the bytes (read where it is encoded).
@@ -558,11 +566,41 @@ def stored_image(part: object) -> tuple[str, str, str] | None:
     return digest, name, caption
 
 
-def image_file(path: str | Path, digest: str) -> Path | None:
-    """images/<digest>.png of a run directory if it is a file inside it, else None."""
-    root = Path(path).resolve()
-    target = inside(root, f"{IMAGES}/{digest}.png") if IMAGE_DIGEST.match(digest) else None
-    return target if target is not None and target.parent == root / IMAGES and target.is_file() else None
+def read_image(path: str | Path, digest: str) -> bytes | None:
+    """The bytes of images/<digest>.png of a run directory, checked to hash to `digest`: the
+    one reader of stored images (`read_prompt`, the dashboard, the export, a resume that finds
+    one already there). None if the run did not store it; RunDirError in one line if it, or
+    images/, leads out of the run directory, or its bytes hash to something else."""
+    path = Path(path)
+    rel = f"{IMAGES}/{digest}.png"
+    if not IMAGE_DIGEST.match(digest):
+        raise RunDirError(f"{path}: {digest[:80]!r} is not an image digest")
+    root = path.resolve()
+    target = inside(root, rel)
+    if target is None or target.parent != root / IMAGES:
+        raise RunDirError(f"{path}/{rel} leads out of the run directory (a symlink?); refusing to read it")
+    try:
+        with open(target, "rb") as f:
+            png = f.read(MAX_IMAGE_BYTES + 1)
+    except (FileNotFoundError, IsADirectoryError):
+        return None
+    except OSError as e:
+        raise RunDirError(f"{path}/{rel} cannot be read ({e.strerror or type(e).__name__})") from None
+    if len(png) > MAX_IMAGE_BYTES or image_digest(png) != digest:
+        raise RunDirError(f"{path}/{rel} is damaged: its bytes do not hash to its name")
+    return png
+
+
+def check_confined(path: str | Path, entries: set[str] | None = None) -> None:
+    """RunDirError unless each of a run directory's own entries (attempts.jsonl, images/,
+    frames/, ...) stays inside it: what resumes, exports and plays check before reading."""
+    path = Path(path)
+    root = path.resolve()
+    if entries is None:
+        entries = {name for name in OWN_ENTRIES if os.path.lexists(path / name)}
+    escaped = sorted(name for name in entries & OWN_ENTRIES if inside(root, name) is None)
+    if escaped:
+        raise RunDirError(f"{path}/{escaped[0]} leads out of the run directory (a symlink?); refusing to use it")
 
 
 def episode_prompts(path: str | Path, task: str, run: int) -> dict[str, list[dict]]:
@@ -665,9 +703,9 @@ def _logged_prompt(line: bytes) -> tuple[str, list[dict]] | None:
 
 def read_prompt(path: str | Path, task: str, run: int, digest: str) -> list[Message]:
     """The exact messages of prompt `digest` of episode (task, run), images included (read
-    from images/ and checked against their digests): the request a model received, rebuilt
-    from the run directory. RunDirError if the prompt is missing, malformed, or from a run
-    that did not store its images."""
+    from images/ and checked against their digests, `read_image`): the request a model
+    received, rebuilt from the run directory. RunDirError if the prompt or an image is missing,
+    malformed or damaged, or from a run that did not store its images."""
     root = Path(path).resolve()
     stored = stored_prompt_json(path, task, run, digest)
     rel = f"prompt {digest}"
@@ -684,10 +722,9 @@ def read_prompt(path: str | Path, task: str, run: int, digest: str) -> list[Mess
                 content.append(TextPart(text=part))
                 continue
             image_digest_, name, caption = ref
-            file = image_file(root, image_digest_)
-            png = file.read_bytes() if file is not None else b""
-            if not png or image_digest(png) != image_digest_:
-                raise RunDirError(f"{path}: image {image_digest_[:12]}... of {rel} is missing or altered")
+            png = read_image(root, image_digest_)
+            if png is None:
+                raise RunDirError(f"{path}: image {image_digest_[:12]}... of {rel} is missing")
             content.append(ImagePart(image=Image(name=name, caption=caption, png=png)))
         messages.append(Message(role=m["role"], content=content))
     return messages

@@ -494,7 +494,7 @@ function messageNode(ep, m, standIn) {
       parts.push(figure(ep.run_id, p.file, p.caption));
     } else {
       parts.push(el("div", { class: "imgs" }, el("div", { class: "missing", "data-missing": p.name },
-        `image "${p.name}" (${current ? "current observation" : "earlier observation"}) — not stored in the run directory`),
+        `image "${p.name}" (${current ? "current observation" : "earlier observation"}) — ${p.problem || "not stored in the run directory"}`),
         current && standIn ? figure(ep.run_id, standIn.path, `closest stored image: the key frame after the previous decision (${standIn.caption}), not the image the model saw`) : null));
     }
   }

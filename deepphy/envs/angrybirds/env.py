@@ -2,8 +2,9 @@
 
 On the fly: one decision = one launch of the bird in the slingshot; the scene is then
 simulated until it is at rest (sim.py) and the next observation shows it. An attempt ends
-when every pig is dead (success, `terminated`) or when the birds run out (`truncated`);
-it has at most as many decisions as the level has birds. One attempt per level.
+when every pig is dead (success) or when the birds run out (the level is lost): both are
+`terminated`, an outcome of the game (no budget of the harness cut it short); it has at
+most as many decisions as the level has birds. One attempt per level.
 
 Score: SCORE_PIG per pig killed, SCORE_BLOCK per block destroyed and, when the level is
 won, SCORE_UNUSED_BIRD per bird not launched. Stars (on the last step): 0 when lost, else
@@ -100,8 +101,7 @@ class AngryBirdsEnv(Environment):
         if done:
             info["birds_unused"] = len(level.birds) - self._shots if won else 0
         return StepResult(
-            terminated=won,
-            truncated=done and not won,
+            terminated=done,  # won, or out of birds: the level is lost
             success=won,
             observation=None if done else self._observation(settled),
             feedback=feedback,
