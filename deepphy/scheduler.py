@@ -225,8 +225,8 @@ class WorkerModel:
 
 class AgentWorkerModel(WorkerModel):
     """A `WorkerModel` over a user's agent, which keeps a state per episode: the worker hears
-    when an episode of this run ends, to release it (not waited for: it is queued before the
-    worker's next requests from this driver)."""
+    when an episode of this run ends, to release it (a call not waited for: an episode's state
+    is a cache, so one released a little late is only memory held a little longer)."""
 
     def __init__(self, worker: Any, shares_files: bool, config: RunConfig) -> None:
         super().__init__(worker, shares_files)
