@@ -3,7 +3,9 @@ at once, and is throughput close to in-flight / latency?
 
 Starts the local model server (subprocess, 127.0.0.1, --latency 1) and keeps `--in-flight`
 requests going for `--duration` seconds, through one Ray model worker (the way a run
-calls a model; `--direct` calls the client in this process instead). In flight is
+calls a model; `--direct` calls the client in this process instead; `--agent`: through
+the worker hosting examples/reflection.py's agent over the endpoint, whose first attempts
+pass the request on: the cost of hosting a user's agent, deepphy/agent.py). In flight is
 measured by the server (the most handlers active at once); throughput counts responses
 completed after a warm-up.
 
@@ -53,6 +55,8 @@ def main() -> None:
     ap.add_argument("--latency", type=float, default=1.0)
     ap.add_argument("--no-images", action="store_true", help="text-only prompts")
     ap.add_argument("--direct", action="store_true", help="call the client in this process, not via a Ray model worker")
+    ap.add_argument("--agent", action="store_true", help="the worker hosts the reflection agent over the endpoint "
+                    "(run from the repository's root)")
     a = ap.parse_args()
 
     quiet_environment()
@@ -81,7 +85,13 @@ def main() -> None:
 
             local_ray.start(2, LOOPBACK_NODE_IP, temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"),
                             include_dashboard=False, object_store_memory=200 * 1024**2, logging_level=logging.WARNING)
-            worker = make_model_worker("bench", get_spec("iphyre"), models_file=models)
+            agent = None
+            if a.agent:
+                from deepphy.agent import load_agent
+
+                agent = load_agent("examples.reflection:ReflectionAgent", {"endpoint": "bench"})
+            worker = make_model_worker(agent.name if agent else "bench", get_spec("iphyre"), models_file=models,
+                                       agent=agent)
             ray.get(worker.complete.remote(requests[0]), timeout=RAY_TIMEOUT_S)  # started
 
             async def call(req):
@@ -99,7 +109,8 @@ def main() -> None:
         proc.wait(10)
 
     ideal = st["max_in_flight"] / a.latency
-    print(f"mode {'direct' if a.direct else 'Ray model worker'}, {a.in_flight} lanes, server latency {a.latency:g} s, "
+    mode = "direct" if a.direct else "Ray model worker" + (" hosting an agent" if a.agent else "")
+    print(f"mode {mode}, {a.in_flight} lanes, server latency {a.latency:g} s, "
           f"images {'no' if a.no_images else 'yes (2 per request)'}, {os.cpu_count()} cores")
     print(f"server: {st['requests']} requests, most in flight at once {st['max_in_flight']}")
     print(f"throughput after {a.warmup:g} s warm-up: {throughput:.1f} req/s; in-flight/latency = {ideal:.1f} req/s; "

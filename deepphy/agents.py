@@ -12,6 +12,9 @@ as a real model's:
 - `shortcut-<name>`: one of the environment's shortcut baselines (deepphy/envs/shortcuts.py),
   a policy that understands nothing but exploits something (aim straight at the nearest
   pig, cut the first rope); it may read privileged state.
+
+A user's own agent (`--agent package.module:factory`, deepphy/agent.py) is named by its
+`AgentSpec`, which the run's config carries: `make_agent(..., agent=spec)` hosts it.
 """
 
 from __future__ import annotations
@@ -19,6 +22,8 @@ from __future__ import annotations
 import asyncio
 from pathlib import Path
 
+from deepphy.agent import AgentClient, endpoint_configs
+from deepphy.config import AgentSpec, RunConfig
 from deepphy.envs import ActionSpace, get_spec
 from deepphy.envs import shortcuts
 from deepphy.models import ModelClient, ModelConfig, UnknownModel, client_from_config, load_models
@@ -129,12 +134,24 @@ def retiring(names: list[str], models_file: str | Path | None = None) -> list[Mo
     return [c for c in configs if c is not None and c.retirement is not None]
 
 
+def run_endpoints(config: RunConfig, models_file: str | Path | None = None) -> list[ModelConfig]:
+    """The models-file entries a run calls: its endpoint, or those its agent declares; none
+    for a baseline."""
+    if config.agent is not None:
+        return endpoint_configs(config.agent, models_file)
+    endpoint = endpoint_config(config.model, models_file)
+    return [endpoint] if endpoint is not None else []
+
+
 def make_agent(name: str, models_file: str | Path | None = None, limiter: Limiter | None = None,
-               env: str | None = None) -> ModelClient:
+               env: str | None = None, agent: AgentSpec | None = None) -> ModelClient:
     """The client for `name`: a baseline, or the endpoint's HTTP client (its key read from
-    the environment; `limiter` the endpoint's shared limiter, None for an in-process one).
-    `env`: the environment it will play, where known (a shortcut must be one of its own:
-    `shortcuts.UnknownShortcut` otherwise)."""
+    the environment; `limiter` the endpoint's shared limiter, None for an in-process one),
+    or, given its `agent` spec, a user's agent (built, its endpoints' keys read; its setup
+    waits for its first request). `env`: the environment it will play, where known (a
+    shortcut must be one of its own: `shortcuts.UnknownShortcut` otherwise)."""
+    if agent is not None:
+        return AgentClient(agent, models_file)
     config = endpoint_config(name, models_file)
     if config is None:
         if shortcuts.is_shortcut(name):

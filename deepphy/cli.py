@@ -38,6 +38,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--model", help="model name; default mock (random valid actions); with --suite, "
                      "comma-separated models or groups of the models file, e.g. paper, paper-open, "
                      "paper-closed (default: the suite's)")
+    run.add_argument("--agent", metavar="PACKAGE.MODULE:FACTORY",
+                     help="evaluate your own agent (docs/agents.md): the factory returns a deepphy.agent.Agent; the "
+                          "run's model name is made of the entry point and --agent-arg's (with --suite: the suite's "
+                          "agents)")
+    run.add_argument("--agent-arg", action="append", metavar="KEY=VALUE",
+                     help="keyword argument of the agent's factory, a JSON value or a string (repeatable)")
     run.add_argument("--models-file", help="YAML file of model endpoints (default: $DEEPPHY_MODELS_FILE, "
                      "else the shipped deepphy/models/models.yaml)")
     run.add_argument("--max-cost", type=float, metavar="USD",
@@ -158,14 +164,14 @@ def build_parser() -> argparse.ArgumentParser:
 MAX_OPTION_DEPTH = 16  # nesting of an --env-option's JSON value (no environment needs more than 2)
 
 
-def _env_options(pairs: list[str]) -> dict[str, object]:
+def _env_options(pairs: list[str], flag: str = "--env-option") -> dict[str, object]:
     import json
 
     options: dict[str, object] = {}
     for pair in pairs:
         key, sep, value = pair.partition("=")
         if not sep or not key:
-            raise UserError(f"--env-option expects KEY=VALUE, got {pair[:80]!r}")
+            raise UserError(f"{flag} expects KEY=VALUE, got {pair[:80]!r}")
         try:
             options[key] = json.loads(value)
             too_deep = _depth(options[key]) > MAX_OPTION_DEPTH
@@ -174,7 +180,7 @@ def _env_options(pairs: list[str]) -> dict[str, object]:
         except RecursionError:  # deeper than Python's parser goes
             too_deep = True
         if too_deep:
-            raise UserError(f"--env-option {key[:40]}: the value is nested deeper than {MAX_OPTION_DEPTH} levels")
+            raise UserError(f"{flag} {key[:40]}: the value is nested deeper than {MAX_OPTION_DEPTH} levels")
     return options
 
 
@@ -209,10 +215,19 @@ def cmd_run(args: argparse.Namespace) -> int:
         # absolute: model workers may run in another directory
         models_file=str(Path(args.models_file).resolve()) if args.models_file else None,
     ))
+    if args.agent_arg and not args.agent:
+        raise UserError("--agent-arg needs --agent")
     if args.suite:
         return run_suite_command(args, runtime)
-    model = "mock"
-    if args.model:
+    model, agent = "mock", None
+    if args.agent:
+        from deepphy.agent import load_agent
+
+        if args.model:
+            raise UserError("--agent and --model name two agents; a run directory holds one (several: --suite)")
+        agent = load_agent(args.agent, _env_options(args.agent_arg or [], "--agent-arg"))
+        model = agent.name
+    elif args.model:
         from deepphy.agents import expand_models
 
         models = expand_models([m for m in args.model.split(",") if m], runtime.models_file)
@@ -225,8 +240,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         runs=args.runs if args.runs is not None else 3, seed=args.seed or 0,
         tasks=_task_ids(args.tasks),
         limit=args.limit, max_attempts=args.max_attempts, env_options=_env_options(args.env_option or []),
+        agent=agent,
     ))
-    warn_retired([config.model], runtime.models_file)
+    warn_retired([config.model] if agent is None else [], runtime.models_file)
     if args.dry_run:
         from deepphy.estimate import estimate, render
 
@@ -248,6 +264,9 @@ def run_suite_command(args: argparse.Namespace, runtime: RuntimeOptions) -> int:
         raise UserError(f"{given[0]} is set by the suite; write it in a suite file instead")
     try:
         suite = S.load_suite(args.suite)
+        if args.agent:  # replaces the suite's agents, as --model replaces its models
+            suite = suite.model_copy(update={"agents": [
+                S.SuiteAgent(entry=args.agent, args=_env_options(args.agent_arg or [], "--agent-arg"))]})
         models = S.suite_models(suite, [m for m in args.model.split(",") if m] if args.model else None,
                                 runtime.models_file)
         warn_retired(models, runtime.models_file)
@@ -257,7 +276,7 @@ def run_suite_command(args: argparse.Namespace, runtime: RuntimeOptions) -> int:
 
             estimates = [estimate(c.config, runtime.models_file, label=c.dir) for c in S.cells(suite, models)]
             print(render(estimates))
-            if len(models) > 1:
+            if len({e.model for e in estimates}) > 1:
                 print()
                 print(render_by_model(estimates, retirement_status(models, runtime.models_file)))
             return 0
@@ -684,6 +703,7 @@ COMMANDS = {"run": cmd_run, "report": cmd_report, "leaderboard": cmd_leaderboard
 
 
 def main(argv: list[str] | None = None) -> int:
+    from deepphy.agent import AgentError
     from deepphy.envs import UnknownEnvironment
     from deepphy.envs.shortcuts import UnknownShortcut
     from deepphy.local_ray import RayStartFailed
@@ -696,7 +716,7 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         return COMMANDS[args.command](args)
     except (UserError, ConfigError, RunDirError, UnknownEnvironment, UnknownModel, MissingKey, ModelsFileError,
-            ClusterUnavailable, RayStartFailed, AccessDenied, UnknownShortcut) as e:
+            ClusterUnavailable, RayStartFailed, AccessDenied, UnknownShortcut, AgentError) as e:
         print(f"deepphy: error: {one_line(str(e))}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into `head` and friends

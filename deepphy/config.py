@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
+import re
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serializer, model_validator
 
 from deepphy.chat import PromptFormat
 
@@ -21,6 +24,55 @@ SEED_MIN, SEED_MAX = -(2**63), 2**63 - 1  # a 64-bit integer, as datasets and Nu
 # never resumed: their prompts are no longer made.
 PromptSet = Literal["paper", "before-parity"]
 PROMPTS = "paper"
+
+
+AGENT_ENTRY = r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$"
+AGENT_NAME_MAX = 120  # an agent's model name names suite directories: kept well below a file name's 255 bytes
+_UNSAFE = re.compile(r"[^A-Za-z0-9._=-]")  # in a model name: what a file name and a suite's cell path allow
+
+
+class AgentSpec(BaseModel):
+    """A user's agent (`deepphy run --agent ENTRY --agent-arg KEY=VALUE`, deepphy/agent.py):
+    stored in the run's config, so a resume with other arguments, or with another version of
+    the agent's package, is refused like any change of config."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    entry: str = Field(pattern=AGENT_ENTRY, description="package.module:factory")
+    args: dict[str, Any] = Field(default_factory=dict, description="keyword arguments of the factory (JSON values)")
+    package: str = Field(description="the distribution (else the top-level package) the entry point is in")
+    version: str | None = Field(description="that package's version; None: it has none (not installed, no __version__)")
+
+    @field_validator("args")
+    @classmethod
+    def _keyword_names(cls, args: dict[str, Any]) -> dict[str, Any]:
+        bad = [k for k in args if not k.isidentifier()]
+        if bad:
+            raise ValueError(f"agent argument {bad[0][:40]!r} is not a keyword name (letters, digits and _)")
+        return args
+
+    @property
+    def name(self) -> str:
+        """The model name of the agent's runs: its entry point and arguments, stable and
+        filesystem-safe (letters, digits, . _ = - joined by +), e.g.
+        `examples.reflection.ReflectionAgent+endpoint=gpt-4o`. Where an argument does not
+        fit that alphabet, or the name would be longer than AGENT_NAME_MAX, the readable part
+        is cut and a hash of the exact entry point and arguments ends it, so two agents never
+        share a name."""
+        parts = [self.entry.replace(":", ".")]
+        parts += [f"{k}={v if isinstance(v, str) else json.dumps(v, sort_keys=True)}"
+                  for k, v in sorted(self.args.items())]
+        exact = "+".join(parts)
+        safe = "+".join(_UNSAFE.sub("_", p) for p in parts)
+        if safe == exact and len(exact) <= AGENT_NAME_MAX:
+            return exact
+        digest = hashlib.sha256(json.dumps([self.entry, self.args], sort_keys=True).encode()).hexdigest()[:10]
+        return f"{safe[:AGENT_NAME_MAX - len(digest) - 1]}+{digest}"
+
+    @property
+    def label(self) -> str:
+        """The agent's package and version, for tables: `examples 0.1.0`."""
+        return f"{self.package} {self.version or 'unversioned'}"
 
 
 class RunConfig(BaseModel):
@@ -40,6 +92,8 @@ class RunConfig(BaseModel):
     temperature: float = 0.1
     max_tokens: int = Field(1024, ge=1)
     prompts: PromptSet = PROMPTS
+    agent: AgentSpec | None = Field(None, description="a user's agent (its name is `model`); None: a baseline or an "
+                                    "endpoint of the models file")
 
     @field_validator("tasks")
     @classmethod
@@ -59,7 +113,18 @@ class RunConfig(BaseModel):
             get_spec(self.env)
         except UnknownEnvironment as e:
             raise ValueError(str(e)) from None
+        if self.agent is not None and self.model != self.agent.name:
+            raise ValueError(f"model {self.model!r} is not the name of its agent ({self.agent.name})")
         return self
+
+    @model_serializer(mode="wrap")
+    def _no_agent_key_without_an_agent(self, handler):
+        """A run of a baseline or an endpoint is written as before agents existed (config.json,
+        suite manifests): byte for byte the same."""
+        data = handler(self)
+        if self.agent is None:
+            data.pop("agent", None)
+        return data
 
 
 class RuntimeOptions(BaseModel):

@@ -125,6 +125,7 @@ class CellEstimate:
     endpoint: str | None = None  # the endpoint's limiter key (cells of one endpoint share its limit)
     requests_per_min: float | None = None
     model: str = ""  # the agent's name (a suite's per-model summary groups by it)
+    note: str | None = None  # a user's agent whose model cost cannot be bounded: why (one line)
 
     @property
     def expected_min(self) -> float | None:
@@ -214,6 +215,8 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
     """Measure the prompts of `config`'s first `sample` tasks and bound the whole run."""
     from deepphy.runner import resolve
 
+    if config.agent is not None:
+        return estimate_agent(config, models_file, sample, label)
     spec, tasks, k_max = resolve(config)
     endpoint: ModelConfig | None = endpoint_config(config.model, models_file)
     measured = measure(config, sample)
@@ -304,19 +307,20 @@ def render(cells: list[CellEstimate]) -> str:
               "in tokens<=", "in cost<=", "out cost<=", "time~", "time>="]
     rows = []
     for c in cells:
-        baseline = c.tokens_first is None
+        baseline = c.tokens_first is None and c.note is None
         images = f"{c.images_first:g}..{c.images_max}" + (f" (cap {c.max_images})" if c.max_images is not None else "")
         rows.append([
             c.label, _n(c.episodes), _n(c.attempts_max), f"{_n(c.requests_min)}..{_n(c.requests_max)}",
             _n(c.requests_expected), images,
             "-" if baseline else f"{_n(c.tokens_first)}..{_n(c.tokens_max)}", _n(c.input_tokens_max),
-            _usd(c.cost_input_max, c.price_known, baseline), _usd(c.cost_output_max, c.price_known, baseline),
+            *((_usd(c.cost_input_max, c.price_known, baseline), _usd(c.cost_output_max, c.price_known, baseline))
+              if c.note is None else ("unknown", "unknown")),
             "-" if c.expected_min is None else _minutes(c.expected_min),
             "-" if c.rate_limit_min is None else _minutes(c.rate_limit_min),
         ])
     if len(cells) > 1:
         priced = [c for c in cells if c.tokens_first is not None]
-        unknown = any(not c.price_known for c in priced)
+        unknown = any(not c.price_known for c in priced) or any(c.note for c in cells)
         total_in = sum(c.cost_input_max or 0 for c in priced)
         total_out = sum(c.cost_output_max or 0 for c in priced)
         rows.append(["total", _n(sum(c.episodes for c in cells)), _n(sum(c.attempts_max for c in cells)),
@@ -337,6 +341,7 @@ def render(cells: list[CellEstimate]) -> str:
         "requests~: what the reference random baseline (MOCK, the run's seed) asks on those tasks, per episode, "
         "times the episodes (a model that solves more asks fewer); time~ and time>=: requests~ and requests<= at "
         "the endpoint's requests/min (a suite's total: its slowest endpoint, as endpoints run at once).",
+        *(f"note: {c.note}" for c in cells if c.note),
     ])
 
 
@@ -372,8 +377,9 @@ def render_by_model(cells: list[CellEstimate], status: dict[str, str] | None = N
     def row(label: str, group: list[CellEstimate], note: str) -> list[str]:
         priced = [c for c in group if c.tokens_first is not None]
         cost = sum((c.cost_input_max or 0) + (c.cost_output_max or 0) for c in priced)
-        unknown = any(not c.price_known for c in priced)
-        shown = ("$0 (no model)" if not priced else "unknown price" if unknown and not cost
+        noted = any(c.note for c in group)  # a user's agent whose cost cannot be bounded
+        unknown = any(not c.price_known for c in priced) or noted
+        shown = ("$0 (no model)" if not priced and not noted else "unknown price" if unknown and not cost
                  else f"${cost:,.2f}" + (" + unknown" if unknown else ""))
         return [label, _n(len(group)), _n(sum(c.requests_expected for c in group)),
                 _n(sum(c.requests_max for c in group)), _n(sum(c.input_tokens_max or 0 for c in group)), shown,
@@ -387,3 +393,59 @@ def render_by_model(cells: list[CellEstimate], status: dict[str, str] | None = N
     return "\n".join([fmt(header), fmt(["-" * w for w in widths]), *map(fmt, rows), "",
                       "per model: its cells summed; cost<= = in cost<= + out cost<=; time~ and time>=: its cells one "
                       "after another at its endpoint's requests/min (the total: the slowest endpoint)."])
+
+
+# -- a user's agent (deepphy/agent.py) -------------------------------------------------------
+
+
+def estimate_agent(config: RunConfig, models_file: str | None = None, sample: int = DEFAULT_SAMPLE,
+                   label: str | None = None) -> CellEstimate:
+    """A user's agent's run, bounded from the endpoints it declares (`Agent.endpoints`: each
+    with the requests it makes per decision at most, each about the size of the decision's
+    prompt): every endpoint's figures for this run times those requests, summed. Its time is
+    its slowest endpoint's, as they run at once. An agent that declares no endpoint, or no
+    number for one, gets its decisions bounded and a note that its cost cannot be."""
+    from dataclasses import replace
+
+    from deepphy.agent import declared
+
+    label = label or f"{config.env} {config.model} {config.format.value}"
+    calls = declared(config.agent).endpoints
+    unknown = [name for name, per_decision in calls.items() if per_decision is None]
+    if not calls or unknown:
+        decisions = estimate(config.model_copy(update={"model": "mock", "agent": None}), models_file, sample, label)
+        why = ("it declares no endpoint (Agent.endpoints)" if not calls else
+               f"it does not declare how often it calls {', '.join(unknown)} per decision (Agent.endpoints)")
+        return replace(decisions, model=config.model, price_known=False,
+                       note=f"{label}: cannot estimate this agent's model cost: {why}")
+    parts = [(estimate(config.model_copy(update={"model": name, "agent": None}), models_file, sample, label), k)
+             for name, k in calls.items()]
+    first = parts[0][0]
+
+    def total(field: str) -> float | None:
+        values = [getattr(e, field) for e, _ in parts]
+        return None if any(v is None for v in values) else sum(v * k for v, (_, k) in zip(values, parts))
+
+    def largest(field: str) -> float | None:
+        values = [getattr(e, field) for e, _ in parts if getattr(e, field) is not None]
+        return max(values) if values else None
+
+    expected = total("requests_expected")
+    # the endpoint that takes longest at its limit sets the run's time
+    slowest, k = max(parts, key=lambda p: (p[0].rate_limit_min or 0.0) * p[1])
+    paced = slowest.requests_per_min is not None and slowest.requests_expected * k > 0
+    return CellEstimate(
+        label=label, episodes=first.episodes, attempts_max=first.attempts_max,
+        requests_min=round(total("requests_min")), requests_max=round(total("requests_max")),
+        images_first=max(e.images_first for e, _ in parts), images_max=max(e.images_max for e, _ in parts),
+        max_images=largest("max_images"), tokens_first=largest("tokens_first"), tokens_max=largest("tokens_max"),
+        input_tokens_max=total("input_tokens_max"), output_tokens_max=total("output_tokens_max"),
+        cost_input_max=total("cost_input_max"), cost_output_max=total("cost_output_max"),
+        price_known=all(e.price_known for e, _ in parts),
+        rate_limit_min=slowest.rate_limit_min * k if slowest.rate_limit_min is not None else None,
+        sampled=first.sampled, requests_expected=expected,
+        endpoint=slowest.endpoint,
+        # the rate at which this run's expected requests take as long as the slowest endpoint's share of them
+        requests_per_min=expected * slowest.requests_per_min / (slowest.requests_expected * k) if paced else None,
+        model=config.model,
+    )

@@ -32,6 +32,10 @@ second implementation). One Gymnasium episode is one attempt at one task, as in
   (video recorders need one shape): PHYRE's and I-PHYRE's final key frame, a strip of
   frames over the attempt, is scaled down into it.
 - `env_options={...}`: the environment's options, as `deepphy run --env-option`.
+
+A policy trained here is evaluated by `deepphy run` through an agent (deepphy/agent.py):
+`observation_of(request)` is the observation above of the decision a model request asks
+for (examples/gym_policy.py adapts any callable from it to an action).
 """
 
 from __future__ import annotations
@@ -47,6 +51,9 @@ from deepphy.envs import (
     ActionSpace, EnvOptions, Environment, Image, InvalidAction, Observation, Task, get_spec, specs,
 )
 from deepphy.envs.parsing import MAX_REPLY_CHARS
+from deepphy.models.base import ModelRequest
+from deepphy.chat import ImagePart, TextPart
+from deepphy.prompts.base import CURRENT_OBSERVATION
 
 SUCCESS_REWARD = 1.0  # the step that solves the task
 INVALID_REWARD = -1.0  # an action that does not parse, or one the environment rejects as invalid
@@ -232,6 +239,23 @@ def _images(observation: Observation) -> np.ndarray:
     if len(shapes) != 1:
         raise RuntimeError(f"the observation's images differ in size ({sorted(shapes)}); stack needs one size")
     return np.stack(arrays)
+
+
+def observation_of(request: ModelRequest) -> dict[str, Any]:
+    """The observation `DeepPhyEnv` gives at the decision `request` asks for: the images its
+    prompt shows as the current observation, and the text state it shows after them ("" where
+    none; deepphy.prompts.build_messages lays the prompt out so)."""
+    parts = request.messages[-1].content
+    marks = [i for i, p in enumerate(parts) if isinstance(p, TextPart) and p.text == CURRENT_OBSERVATION]
+    if not marks:
+        raise ValueError(f"the request shows no {CURRENT_OBSERVATION!r} (not a deepphy decision prompt)")
+    shown = parts[marks[-1] + 1:-1]  # the last part asks for the action
+    images = [i for i, p in enumerate(shown) if isinstance(p, ImagePart)]
+    after = shown[images[-1] + 1:] if images else []
+    arrays = [shown[i].image.to_array() for i in images]
+    if len({a.shape for a in arrays}) > 1:
+        raise RuntimeError("the observation's images differ in size; stack needs one size")
+    return {"images": np.stack(arrays), "text": after[0].text if after else ""}
 
 
 def register_all() -> list[str]:

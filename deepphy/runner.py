@@ -17,7 +17,8 @@ from pydantic import ValidationError
 
 from deepphy import reaper
 from deepphy.config import RunConfig, RuntimeOptions
-from deepphy.agents import endpoint_config, make_agent
+from deepphy.agent import AgentError
+from deepphy.agents import make_agent, run_endpoints
 from deepphy.collector import frozen_heap
 from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.messages import validation_message
@@ -64,13 +65,15 @@ class RunOutcome:
 class Shared:
     """What a suite lends a run (`evaluate(shared=...)`), and stops itself when its last
     cell is done: the environment workers of the run's setting (several cells use them at
-    once) and the endpoints' rate limiters (created by the suite, so one cell ending never
-    kills the limiter another cell of that endpoint is using). `watch(metrics, scheduler)`
-    hears them once the run's actors are up: the suite's progress view reads them, and a
-    suite that stops stops the scheduler."""
+    once), the endpoints' rate limiters (created by the suite, so one cell ending never
+    kills the limiter another cell of that endpoint is using) and the model worker of each
+    user's agent, by model name (its setup, a checkpoint loaded on a GPU say, done once for
+    all its cells). `watch(metrics, scheduler)` hears them once the run's actors are up: the
+    suite's progress view reads them, and a suite that stops stops the scheduler."""
 
     env_workers: list[Any]
     watch: Callable[[Any, Any], None] = lambda metrics, scheduler: None
+    agent_workers: dict[str, Any] = field(default_factory=dict)
 
 
 def make_env_workers(spec: EnvSpec, options: dict[str, Any], runtime: RuntimeOptions, name: str,
@@ -237,8 +240,9 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
 
     runtime = runtime or RuntimeOptions()
     spec, tasks, k_max = resolve(config)
-    endpoint = endpoint_config(config.model, runtime.models_file)
-    make_agent(config.model, runtime.models_file, env=config.env)  # a missing key fails here, before anything is written
+    endpoints = run_endpoints(config, runtime.models_file)
+    # a missing key (an agent that cannot be built) fails here, before anything is written
+    make_agent(config.model, runtime.models_file, env=config.env, agent=config.agent)
     store = RunStore.claim(out, config)  # another run's directory, or one in use: fails here
     try:
         existing = read_records(out)
@@ -264,7 +268,7 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
     from deepphy.actors.metrics_actor import make_metrics_actor
     from deepphy.actors.model_worker import make_model_worker
     from deepphy.actors.rate_limiter import ensure_limiter
-    from deepphy.scheduler import Scheduler, WorkerModel
+    from deepphy.scheduler import AgentWorkerModel, Scheduler, WorkerModel
 
     actors: list[Any] = []
     model_actors: list[Any] = []
@@ -285,21 +289,32 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
         else:
             env_workers = make_env_workers(spec, config.env_options, runtime, f"{prefix}/env",
                                            lambda i: store.log_path(f"env{i}"))
-        # The driver owns the endpoint's limiter, so a model worker's restart keeps its windows.
-        limiter = ensure_limiter(endpoint) if endpoint is not None else None
-        if endpoint is None:  # a random baseline answers in microseconds: no worker, no Ray call
+        # The driver owns the endpoints' limiters, so a model worker's restart keeps their windows.
+        limiters = [limiter for e in endpoints if (limiter := ensure_limiter(e)) is not None]
+        if not endpoints and config.agent is None:  # a random baseline answers in microseconds: no worker, no Ray call
             model, model_actors = make_agent(config.model), []
         else:
-            worker = make_model_worker(config.model, spec, name=f"{prefix}/model", models_file=runtime.models_file,
-                                       max_concurrency=max(1000, runtime.max_in_flight))
+            worker = shared.agent_workers.get(config.model) if shared is not None else None
+            model_actors = [] if worker is not None else [
+                make_model_worker(config.model, spec, name=f"{prefix}/model", models_file=runtime.models_file,
+                                  max_concurrency=max(1000, runtime.max_in_flight), agent=config.agent)]
+            worker = worker or model_actors[0]
             probe = (store.path / CONFIG).resolve()
-            seen = _started(worker.read_file.remote(str(probe)), "the model worker", runtime)
+            try:
+                seen = _started(worker.read_file.remote(str(probe)), "the model worker", runtime)
+            except ray.exceptions.RayActorError as e:
+                if config.agent is None or not e.actor_init_failed:
+                    raise
+                # its node's install differs from the driver's (another version, a missing dependency)
+                said = _raised(e).removeprefix(f"{AgentError.__module__}.{AgentError.__name__}: ")
+                raise AgentError(f"{said} (in the agent's model worker, which could not start)") from None
             shares_files = seen == probe.read_bytes()
-            model, model_actors = WorkerModel(worker, shares_files), [worker]
+            model = (AgentWorkerModel(worker, shares_files, config) if config.agent is not None
+                     else WorkerModel(worker, shares_files))
         metrics = make_metrics_actor(total, k_max, spec.max_steps, name=f"{prefix}/metrics", run={
             "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})
         actors = [*(env_workers if shared is None else []), *model_actors, metrics,
-                  *([limiter] if limiter is not None and shared is None else [])]
+                  *(limiters if shared is None else [])]
         # Not waited for here: the metrics actor's process starts while the workers start and the
         # first attempts run (its calls queue in order until it is up); `_drive` checks it came up.
         metrics_ready = metrics.add.remote(summaries_json([r.summary() for r in existing]), resumed=True)
@@ -342,6 +357,14 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
             except Exception:  # noqa: BLE001 - already gone
                 pass
         _stop_ray(started_ray)
+
+
+def _raised(error: BaseException) -> str:
+    """The exception an actor's constructor raised, as its one line in Ray's error text."""
+    import re
+
+    raised = [line.strip() for line in str(error).splitlines() if re.match(r"^\s*[\w.]+(Error|Exception): ", line)]
+    return raised[-1] if raised else str(error).strip().splitlines()[0]
 
 
 def _started(ref: Any, what: str, runtime: RuntimeOptions) -> Any:

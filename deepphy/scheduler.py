@@ -12,6 +12,7 @@ for a resume; the other episodes go on) and the cost budget.
 from __future__ import annotations
 
 import asyncio
+import json
 import logging
 import time
 import traceback
@@ -23,6 +24,7 @@ import ray
 from ray.exceptions import ActorDiedError, ActorUnavailableError, RayActorError
 
 from deepphy.actors.env_worker import LostEpisode
+from deepphy.agent import AgentFailed, Episode
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import Action, EnvSpec, Observation, StepResult, Task
 from deepphy.envs.base import ObservationCache
@@ -35,7 +37,7 @@ log = logging.getLogger(__name__)
 
 WORKER_LOST = (LostEpisode, ActorDiedError, ActorUnavailableError, RayActorError)
 # Failures no retry can mend, that end the whole run at once (raised by `Scheduler.run`).
-FATAL = (RunWriteError, AccessDenied)
+FATAL = (RunWriteError, AccessDenied, AgentFailed)
 # Calls on their way per environment worker: the worker runs one call while the next waits
 # in its queue, so it never idles for a round trip. A call carries as many of the decisions
 # waiting for that worker as take it about `CALL_S` at the pace of its last call, at most
@@ -221,6 +223,24 @@ class WorkerModel:
         return await self.worker.activity.remote()
 
 
+class AgentWorkerModel(WorkerModel):
+    """A `WorkerModel` over a user's agent, which keeps a state per episode: the worker hears
+    when an episode of this run ends, to release it (a call not waited for: an episode's state
+    is a cache, so one released a little late is only memory held a little longer)."""
+
+    def __init__(self, worker: Any, shares_files: bool, config: RunConfig) -> None:
+        super().__init__(worker, shares_files)
+        self.config = config
+
+    def end_episode(self, task: str, run: int) -> None:
+        c = self.config
+        try:
+            self.worker.end_episode.remote(Episode(c.env, json.dumps(c.env_options, sort_keys=True), c.format.value,
+                                                   task, run))
+        except Exception:  # noqa: BLE001 - a lost worker holds no state
+            pass
+
+
 class Scheduler:
     def __init__(
         self,
@@ -309,6 +329,14 @@ class Scheduler:
 
     async def _episode(self, task: Task, run: int, records: list[AttemptRecord]) -> None:
         """`records`: the episode's attempts 1..n so far (the store checked them on resume)."""
+        try:
+            await self._attempts(task, run, records)
+        finally:  # finished or left for a resume: an agent's state of it is released
+            end = getattr(self.model, "end_episode", None)
+            if end is not None:
+                end(task.id, run)
+
+    async def _attempts(self, task: Task, run: int, records: list[AttemptRecord]) -> None:
         while not episode_finished(records, self.k_max) and not self.stop_requested:
             attempt = len(records) + 1
             try:
@@ -397,6 +425,8 @@ class Scheduler:
                     response = await self.model.complete(request)
         except AccessDenied as e:  # the key is refused: no attempt can succeed
             raise AccessDenied(str(getattr(e, "cause", e)), kind="denied") from None
+        except AgentFailed as e:  # an agent that could not set up: neither can its other requests
+            raise AgentFailed(str(getattr(e, "cause", e))) from None
         except ModelError as e:  # from a model worker: the error's own words, not Ray's wrapping
             raise ModelUnavailable(str(getattr(e, "cause", e)), retries=getattr(e, "retries", 0)) from e
         except (asyncio.TimeoutError, RayActorError) as e:

@@ -1,8 +1,10 @@
 """Suites: the benchmark's grid as one unit of work (`deepphy run --suite paper|FILE.yaml`).
 
 A suite file names environments (each with fixed options and option axes, e.g. Kinetix
-`annotate: [true, false]`), prompt formats, repetitions, a seed and default models; `--model
-a,b` replaces the models (a group of the models file, e.g. `paper`, stands for its models). Its cells are environments x option values x models x formats,
+`annotate: [true, false]`), prompt formats, repetitions, a seed, default models and users'
+agents (`agents: [{entry: package.module:factory, args: {...}}]`, deepphy/agent.py); `--model
+a,b` replaces the models (a group of the models file, e.g. `paper`, stands for its models),
+`--agent` the agents. Its cells are environments x option values x models (then agents) x formats,
 and each cell is an ordinary run directory under the suite root,
 `ROOT/<model>/<env>[-<option>=<value>...]/<format>`, holding its `runs` repetitions, so
 report, dashboard, plot, export, repair and resume work on a cell as on any run. The
@@ -65,6 +67,15 @@ class SuiteEnv(BaseModel):
         return axes
 
 
+class SuiteAgent(BaseModel):
+    """A user's agent in a suite: as `--agent ENTRY --agent-arg KEY=VALUE ...`."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    entry: str
+    args: dict[str, Any] = Field(default_factory=dict)
+
+
 class Suite(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
@@ -74,7 +85,9 @@ class Suite(BaseModel):
     formats: list[PromptFormat] = Field([PromptFormat.VLA, PromptFormat.WM], min_length=1)
     runs: int = Field(3, ge=1)
     seed: int = 0
-    models: list[str] = Field(["mock"], min_length=1)
+    models: list[str] = Field(["mock"], description="models and groups of the models file (may be empty when the "
+                              "suite has agents)")
+    agents: list[SuiteAgent] = Field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -117,20 +130,28 @@ def suite_models(suite: Suite, models: list[str] | None = None, models_file: str
 
 def cells(suite: Suite, models: list[str] | None = None, models_file: str | None = None) -> list[Cell]:
     """Every cell: environments x option values x models x formats, in that order."""
+    from deepphy.agent import AgentError, load_agent
+
     out: list[Cell] = []
     models = suite_models(suite, models, models_file)
+    try:
+        agents = [load_agent(a.entry, a.args) for a in suite.agents]
+    except AgentError as e:
+        raise SuiteError(f"suite {suite.name}: {e}") from None
+    if not models and not agents:
+        raise SuiteError(f"suite {suite.name} has no model and no agent to evaluate (give --model or --agent)")
     for entry in suite.envs:
         keys = list(entry.axes)
         for values in itertools.product(*(entry.axes[k] for k in keys)):
             options = {**entry.options, **dict(zip(keys, values))}
             setting = entry.env + "".join(f"-{_name_part(k)}={_name_part(v)}" for k, v in sorted(options.items()))
-            for model in models:
+            for model, agent in [*((m, None) for m in models), *((a.name, a) for a in agents)]:
                 for fmt in suite.formats:
                     try:
                         config = RunConfig(env=entry.env, model=model, format=fmt, runs=entry.runs or suite.runs,
                                            seed=suite.seed,
                                            tasks=entry.tasks, limit=entry.limit, max_attempts=entry.max_attempts,
-                                           env_options=options)
+                                           env_options=options, agent=agent)
                     except ValidationError as e:
                         raise SuiteError(f"suite {suite.name}, {setting}: {validation_message(e)}") from None
                     out.append(Cell(f"{_name_part(model)}/{setting}/{fmt.value}", config))
@@ -166,7 +187,7 @@ def plan(suite: Suite, root: str | Path, models: list[str] | None, models_file: 
     """The cells to run into `root`, every check that needs no Ray done (and nothing
     written): the root is new, empty or this suite's; each cell's options, tasks and
     model (its key included) are valid and its directory new or holding that config."""
-    from deepphy.agents import endpoint_config, make_agent
+    from deepphy.agents import make_agent, run_endpoints
     from deepphy.envs import get_spec
     from deepphy.envs.shortcuts import is_shortcut, shortcut_for
     from deepphy.runner import resolve
@@ -188,9 +209,9 @@ def plan(suite: Suite, root: str | Path, models: list[str] | None, models_file: 
                              "or choose another --out")
     elif root.exists() and any(root.iterdir()):
         raise SuiteError(f"{root} is not empty and holds no suite (no {MANIFEST}); choose another --out")
-    for model in dict.fromkeys(c.config.model for c in wanted):
-        endpoint_config(model, models_file)
-        make_agent(model, models_file)  # a missing key fails here
+    for config in {c.config.model: c.config for c in wanted}.values():
+        run_endpoints(config, models_file)
+        make_agent(config.model, models_file, agent=config.agent)  # a missing key fails here
     for cell in wanted:
         resolve(cell.config)
         if is_shortcut(cell.config.model):  # one of the cell's environment's own shortcuts
@@ -279,6 +300,7 @@ class Interleaved:
         self.running: dict[Any, Cell] = {}  # future -> cell
         self.watched: dict[str, tuple[Any, Any]] = {}  # cell -> (metrics actor, scheduler)
         self.limiters: dict[str, Any] = {}  # endpoint key -> its limiter actor
+        self.agent_workers: dict[str, Any] = {}  # a user's agent (model name) -> the model worker of its cells
         self.error: BaseException | None = None
         self.tty = stream.isatty()
         self.last_view = self.last_cell_lines = 0.0
@@ -288,14 +310,15 @@ class Interleaved:
         import concurrent.futures as cf
 
         from deepphy.actors.rate_limiter import ensure_limiter
-        from deepphy.agents import endpoint_config
+        from deepphy.agents import run_endpoints
 
         for cell in self.waiting:
-            endpoint = endpoint_config(cell.config.model, self.runtime.models_file)
-            if endpoint is not None and endpoint.limiter_key not in self.limiters:
-                limiter = ensure_limiter(endpoint)
-                if limiter is not None:
-                    self.limiters[endpoint.limiter_key] = limiter
+            for endpoint in run_endpoints(cell.config, self.runtime.models_file):
+                if endpoint.limiter_key not in self.limiters:
+                    limiter = ensure_limiter(endpoint)
+                    if limiter is not None:
+                        self.limiters[endpoint.limiter_key] = limiter
+        self._start_agent_workers()
         self.began, self.episodes_at_start = time.monotonic(), sum(d for d, _ in self.progress.values())
         outcomes: dict[str, CellOutcome] = {}
         pool = cf.ThreadPoolExecutor(max_workers=CELLS_AT_ONCE, thread_name_prefix="deepphy-cell")
@@ -335,6 +358,7 @@ class Interleaved:
                 self._release_setting(setting, force=True)
             for limiter in self.limiters.values():
                 _kill(limiter)
+            self._stop_agent_workers()
             if self.tty and self.show:
                 self.stream.write("\n")
                 self.stream.flush()
@@ -342,10 +366,36 @@ class Interleaved:
             raise self.error
         return outcomes
 
+    def _start_agent_workers(self) -> None:
+        """One model worker per user's agent, for all its cells (one setup, one GPU)."""
+        from deepphy.actors.model_worker import make_model_worker
+        from deepphy.runner import resolve
+
+        for n, model in enumerate(dict.fromkeys(c.config.model for c in self.waiting if c.config.agent is not None)):
+            configs = [c.config for c in self.waiting if c.config.model == model]
+            specs = list({resolve(c)[0].name: resolve(c)[0] for c in configs}.values())
+            self.agent_workers[model] = make_model_worker(
+                model, specs, name=f"deepphy/{self.id}/agent{n}", models_file=self.runtime.models_file,
+                max_concurrency=max(1000, CELLS_AT_ONCE * self.runtime.max_in_flight), agent=configs[0].agent)
+
+    def _stop_agent_workers(self) -> None:
+        import ray
+
+        workers = list(self.agent_workers.values())
+        if not workers:
+            return
+        try:  # an agent's close (its endpoints' connections, what its setup took), then the actor
+            ray.wait([w.close.remote() for w in workers], num_returns=len(workers), timeout=10)
+        except Exception:  # noqa: BLE001 - a lost worker has nothing to close
+            pass
+        for worker in workers:
+            _kill(worker)
+        self.agent_workers.clear()
+
     # -- which cell next, and the workers of its setting ---------------------------------
 
     def _next(self) -> Cell | None:
-        from deepphy.agents import endpoint_config
+        from deepphy.agents import run_endpoints
 
         active = set(self.workers)
         room = len(active) < SETTINGS_AT_ONCE
@@ -357,8 +407,8 @@ class Interleaved:
             return None
 
         def endpoint(cell: Cell) -> str:
-            config = endpoint_config(cell.config.model, self.runtime.models_file)
-            return config.limiter_key if config is not None else cell.config.model
+            endpoints = run_endpoints(cell.config, self.runtime.models_file)
+            return endpoints[0].limiter_key if endpoints else cell.config.model
 
         busy = [endpoint(c) for c in self.running.values()]
         cell = min(candidates, key=lambda c: (busy.count(endpoint(c)), self.waiting.index(c)))
@@ -390,7 +440,8 @@ class Interleaved:
         from deepphy.runner import Shared, evaluate
 
         return evaluate(cell.config, self.root / cell.dir, self.runtime, stream=self.stream,
-                        shared=Shared(self.workers[setting_of(cell.config)], lambda m, s: self._watch(cell, m, s)))
+                        shared=Shared(self.workers[setting_of(cell.config)], lambda m, s: self._watch(cell, m, s),
+                                      self.agent_workers))
 
     def _watch(self, cell: Cell, metrics: Any, scheduler: Any) -> None:
         self.watched[cell.dir] = (metrics, scheduler)

@@ -3,28 +3,46 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Sequence
 
 import ray
 
 from deepphy.actors.placement import beside_driver
+from deepphy.config import AgentSpec
 from deepphy.envs import EnvSpec, register
 from deepphy.models import ModelRequest, ModelResponse
 
 
 class ModelWorkerImpl:
-    def __init__(self, model: str, spec: EnvSpec, models_file: str | None = None) -> None:
+    def __init__(self, model: str, spec: EnvSpec | Sequence[EnvSpec], models_file: str | None = None,
+                 agent: AgentSpec | None = None) -> None:
         from deepphy.actors.rate_limiter import RayLimiter
         from deepphy.agents import endpoint_config, make_agent
 
-        register(spec)  # the run's environment, also when it is not one of deepphy's own (MOCK samples its space)
+        # The run's environments, also those not of deepphy's own (MOCK samples their spaces; an
+        # agent's structured action is written in their syntax). A suite's agent serves several.
+        for one in [spec] if isinstance(spec, EnvSpec) else spec:
+            register(one)
 
+        if agent is not None:
+            from deepphy.agent import AgentClient
+
+            # Every worker of the cluster consults each endpoint's one shared limiter actor.
+            self.client = AgentClient(agent, models_file, limiter_for=lambda c: RayLimiter(c) if c.rate_limits.enabled
+                                      else None)
+            return
         config = endpoint_config(model, models_file)
-        # Every worker of the cluster consults the endpoint's one shared limiter actor.
         limiter = RayLimiter(config) if config is not None and config.rate_limits.enabled else None
         self.client = make_agent(model, models_file, limiter=limiter)
 
     async def complete(self, request: ModelRequest) -> ModelResponse:
         return await self.client.complete(request)
+
+    async def end_episode(self, episode: tuple) -> None:
+        """An agent's episode ended: its state is released (`deepphy.agent.Episode`)."""
+        from deepphy.agent import Episode
+
+        self.client.end_episode(Episode(*episode))
 
     async def activity(self) -> dict[str, int]:
         """Requests waiting now for the rate limit and before a retry (for the progress line)."""
@@ -43,14 +61,23 @@ class ModelWorkerImpl:
             return None
 
 
-def make_model_worker(model: str, spec: EnvSpec, *, name: str | None = None, models_file: str | None = None,
-                      max_concurrency: int = 1000):
-    """`max_concurrency`: requests handled at once (a run passes its episodes in flight)."""
-    # Stateless: a crashed worker is restarted and its in-flight calls retried by Ray.
+def make_model_worker(model: str, spec: EnvSpec | Sequence[EnvSpec], *, name: str | None = None,
+                      models_file: str | None = None, max_concurrency: int = 1000, agent: AgentSpec | None = None):
+    """`max_concurrency`: requests handled at once (a run passes its episodes in flight).
+    An agent that declares Ray resources (a GPU) gets them, wherever the cluster has them;
+    any other worker is an I/O actor beside the driver that reserves nothing."""
+    options = {"num_cpus": 0, "scheduling_strategy": beside_driver()}
+    if agent is not None:
+        from deepphy.agent import declared
+
+        resources = declared(agent).resources
+        if resources.requested:
+            options = resources.actor_options()
+    # Stateless (an agent's episode state is a cache): a crashed worker is restarted and its
+    # in-flight calls retried by Ray.
     return ModelWorker.options(
-        num_cpus=0, max_restarts=5, max_task_retries=3, max_concurrency=max_concurrency, name=name,
-        scheduling_strategy=beside_driver(),
-    ).remote(model, spec, models_file)
+        max_restarts=5, max_task_retries=3, max_concurrency=max_concurrency, name=name, **options,
+    ).remote(model, spec, models_file, agent)
 
 
 ModelWorker = ray.remote(ModelWorkerImpl)  # one class per process (see env_worker.EnvWorker)

@@ -61,9 +61,10 @@ class Group:
 @dataclass
 class Leaderboard:
     groups: list[Group]
-    rows: list[tuple[str, str]]  # (model, format)
+    rows: list[tuple[str, str]]  # (model, format); a user's agent's model: `row_model`
     cells: dict[tuple[int, int], list[Cell]]  # (row, group) -> a cell per column
     notes: list[str]
+    agents: dict[str, dict[str, Any]] = field(default_factory=dict)  # row model -> its user's agent (AgentSpec)
 
     def row_label(self, i: int) -> str:
         model, fmt = self.rows[i]
@@ -74,6 +75,15 @@ class Leaderboard:
 
     def keys(self) -> list[str]:
         return list(dict.fromkeys(c.key for g in self.groups for c in g.columns))
+
+
+def row_model(report: dict[str, Any]) -> str:
+    """A row's model: the run's, and for a user's agent (named by its entry point and
+    arguments) its package and version too: two versions of an agent are two rows."""
+    agent = report.get("agent")
+    if agent is None:
+        return report["model"]
+    return f"{report['model']} ({agent['package']} {agent['version'] or 'unversioned'})"
 
 
 def _missing(group: Group) -> list[Cell]:
@@ -129,6 +139,7 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
     rows: dict[tuple[str, str], int] = {}
     where: dict[tuple[int, int], str | None] = {}
     cells: dict[tuple[int, int], list[Cell]] = {}
+    agents: dict[str, dict[str, Any]] = {}
     for report, run_dir in zip(reports, run_dirs):
         options = options_of(report)
         gkey = (report["env"], json.dumps(options, sort_keys=True))
@@ -136,9 +147,11 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
             groups[gkey] = Group(report["env"], options, _setting_title(report["env"], options), headline_columns(report))
         group = groups[gkey]
         g = list(groups).index(gkey)
-        r = rows.setdefault((report["model"], report["format"]), len(rows))
+        r = rows.setdefault((row_model(report), report["format"]), len(rows))
+        if report.get("agent") is not None:
+            agents[row_model(report)] = report["agent"]
         if (r, g) in cells:
-            raise LeaderboardError(f"two runs of {report['model']} {report['format'].upper()} on {group.title}: "
+            raise LeaderboardError(f"two runs of {row_model(report)} {report['format'].upper()} on {group.title}: "
                                    f"{where[(r, g)]} and {run_dir}; give one of them")
         where[(r, g)] = run_dir
         group.reports.append(report)
@@ -169,7 +182,7 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
     envs, keys = list(specs()), list(groups)
     by_column = sorted(range(len(groups)), key=lambda g: (envs.index(keys[g][0]), keys[g][1] != "{}", keys[g][1]))
     cells = {(r, by_column.index(g)): c for (r, g), c in cells.items()}
-    return Leaderboard([list(groups.values())[g] for g in by_column], sorted(rows, key=rows.get), cells, notes)
+    return Leaderboard([list(groups.values())[g] for g in by_column], sorted(rows, key=rows.get), cells, notes, agents)
 
 
 def not_started(root: Path, started: Collection[Path],
@@ -258,7 +271,7 @@ def as_dict(board: Leaderboard) -> dict[str, Any]:
     return {
         "columns": [{"env": g.env, "env_options": g.options, "title": g.title, "header": c.header, "key": c.key}
                     for g in board.groups for c in g.columns],
-        "rows": [{"model": model, "format": fmt,
+        "rows": [{"model": model, "format": fmt, **({"agent": board.agents[model]} if model in board.agents else {}),
                   "cells": [{"mean": c.mean, "std": c.std, "text": c.text, "best": c.best,
                              "unfinished": c.unfinished, "run_dir": c.run_dir} for c in board.row_cells(i)]}
                  for i, (model, fmt) in enumerate(board.rows)],

@@ -133,6 +133,8 @@ def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[Att
         "task_set": task_set_digest(tasks),
         "overall": _section(eps, tasks, config.runs, k_max, spec, wm),
     }
+    if config.agent is not None:  # a user's agent: its entry point, arguments and package version
+        report["agent"] = config.agent.model_dump(mode="json")
     groups = list(dict.fromkeys(t.group for t in tasks if t.group))  # in the environment's order (S, M, L)
     if len(groups) > 1:
         report["groups"] = {
