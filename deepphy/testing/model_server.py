@@ -30,7 +30,9 @@ RetryInfo detail in the body), `500`,
 `hang` (no answer for --hang seconds, past any sane client timeout), `malformed` (200
 with truncated JSON), `empty` (200 with no choices / content / candidates), `prose` (200
 with a reply that contains no action); and, only when named, `drip` (a 200 whose body
-arrives one byte every --drip seconds). Whether a request is faulted, and how, depends
+arrives one byte every --drip seconds). With `--max-images` / `--max-context-tokens` it
+refuses a prompt past a vLLM deployment's limits with vLLM's own 400 (OpenAI format).
+Whether a request is faulted, and how, depends
 only on the seed, the request (body + context header) and how many times that same
 request arrived before, so a run's faults do not depend on timing or arrival order; a
 retry of a request draws again.
@@ -99,6 +101,10 @@ class ServerConfig(BaseModel):
     seed: int = 0
     faults: Faults = Faults()
     require_key_env: str | None = None  # when set, requests must carry this env var's key
+    # A vLLM deployment's own limits (OpenAI format), answered as vLLM does, with a 400: images per
+    # prompt (its limit_mm_per_prompt) and prompt + max_tokens (its max_model_len).
+    max_images: int | None = Field(None, ge=0)
+    max_context_tokens: int | None = Field(None, ge=1)
     record_bodies: int = Field(0, ge=0)
     log_path: str | None = None
 
@@ -456,6 +462,19 @@ class GeminiFormat:
         return ApiError(400, "API key not valid. Please pass a valid API key.", code="API_KEY_INVALID")
 
 
+def _vllm_limits(cfg: ServerConfig, body: dict, prompt_tokens: int) -> None:
+    """vLLM's 400s (its wording, vLLM 0.8-0.10) for a prompt past the deployment's limits."""
+    images = sum(1 for m in body["messages"] if isinstance(m.get("content"), list)
+                 for p in m["content"] if p.get("type") == "image_url")
+    if cfg.max_images is not None and images > cfg.max_images:
+        raise BadRequest(f"At most {cfg.max_images} image(s) may be provided in one request.")
+    wanted = prompt_tokens + int(body.get("max_tokens") or body.get("max_completion_tokens") or 0)
+    if cfg.max_context_tokens is not None and wanted > cfg.max_context_tokens:
+        raise BadRequest(f"This model's maximum context length is {cfg.max_context_tokens} tokens. However, you "
+                         f"requested {wanted} tokens ({prompt_tokens} in the messages, {wanted - prompt_tokens} in "
+                         "the completion). Please reduce the length of the messages or completion.")
+
+
 # --- the server ------------------------------------------------------------------------------
 
 
@@ -614,6 +633,11 @@ class MockServer:
             return err(e), None
         except ValueError:
             return err(BadRequest("request body is not valid JSON")), None
+        if fmt is OpenAIFormat:
+            try:
+                _vllm_limits(cfg, body, fmt.prompt_tokens(body))
+            except ApiError as e:
+                return err(e), None
         if fault:
             self.faults[fault] += 1  # counted when served (a hang is cut short by the client)
         if delay:
@@ -759,6 +783,10 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--require-key-env", default=None, help="require the key held in this env var")
     ap.add_argument("--record-bodies", type=int, default=0, help="keep the last N request bodies (GET /admin/bodies)")
     ap.add_argument("--log", default=None, help="append one JSON line per request (arrival time, fault, status)")
+    ap.add_argument("--max-images", type=int, default=None,
+                    help="answer 400 as vLLM does to a prompt with more images (OpenAI format)")
+    ap.add_argument("--max-context-tokens", type=int, default=None,
+                    help="answer 400 as vLLM does to a prompt plus max_tokens longer than this (OpenAI format)")
     a = ap.parse_args(argv)
     config = ServerConfig(
         latency_s=a.latency,
@@ -769,6 +797,8 @@ def main(argv: list[str] | None = None) -> None:
         require_key_env=a.require_key_env,
         record_bodies=a.record_bodies,
         log_path=a.log,
+        max_images=a.max_images,
+        max_context_tokens=a.max_context_tokens,
     )
 
     async def run() -> None:
