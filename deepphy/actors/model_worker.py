@@ -4,9 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import ray
-
-from deepphy.actors.placement import beside_driver
+from deepphy.actors import remote_class
 from deepphy.envs import EnvSpec, register
 from deepphy.models import ModelRequest, ModelResponse
 
@@ -46,6 +44,8 @@ class ModelWorkerImpl:
 def make_model_worker(model: str, spec: EnvSpec, *, name: str | None = None, models_file: str | None = None,
                       max_concurrency: int = 1000):
     """`max_concurrency`: requests handled at once (a run passes its episodes in flight)."""
+    from deepphy.actors.placement import beside_driver
+
     # Stateless: a crashed worker is restarted and its in-flight calls retried by Ray.
     return ModelWorker.options(
         num_cpus=0, max_restarts=5, max_task_retries=3, max_concurrency=max_concurrency, name=name,
@@ -53,4 +53,4 @@ def make_model_worker(model: str, spec: EnvSpec, *, name: str | None = None, mod
     ).remote(model, spec, models_file)
 
 
-ModelWorker = ray.remote(ModelWorkerImpl)  # one class per process (see env_worker.EnvWorker)
+ModelWorker = remote_class(ModelWorkerImpl)  # one class per process (see env_worker.EnvWorker)
