@@ -1,36 +1,70 @@
-"""The `deepphy` command: run, report, leaderboard, envs, show, watch, solve, dashboard, play, plot, export, repair."""
+"""The `deepphy` command: run, report, leaderboard, envs, show, watch, solve, dashboard, play, plot, export, repair.
+
+This module imports only `os` and `sys` at its top: `--version`, `--help` and a bad flag
+answer within Python's own start (a command imports what it needs when it runs), and `run`
+says what it is doing before anything else is imported (`start_view`, deepphy/start_view.py).
+"""
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
-import re
 import sys
-from pathlib import Path
 
-from pydantic import ValidationError
+TYPE_CHECKING = False  # typing's, without importing typing (which takes longer than Python's own start)
+if TYPE_CHECKING:  # annotations only: both are imported where they are used
+    import argparse
+    from pathlib import Path
 
-from deepphy import __version__
-from deepphy.config import DEFAULT_OUT, RunConfig, RuntimeOptions
-from deepphy.messages import one_line, validation_message
+DEFAULT_OUT = "runs/demo"  # `deepphy run`'s run directory when --out is not given
 
 
 class UserError(Exception):
     """Anything the user can fix. Printed as one line; exit status 2."""
 
 
-class Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, not usage + error
-        raise UserError(message)
+class _NotAsked:
+    """A command not named on the command line: listed by `--help`, its arguments not built."""
+
+    def add_argument(self, *args, **kwargs) -> None:
+        pass
+
+    def add_mutually_exclusive_group(self, *args, **kwargs) -> "_NotAsked":
+        return self
+
+    def set_defaults(self, **kwargs) -> None:
+        pass
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: list[str] | None = None):
+    """The command line's parser (argparse, imported here: not before a run's first line);
+    given `argv`, with the arguments of its command only."""
+    import argparse
+
+    class Parser(argparse.ArgumentParser):
+        def error(self, message: str) -> None:  # one line, not usage + error
+            raise UserError(message)
+
+    class Version(argparse.Action):
+        """`--version`: the installed version, read only when asked for."""
+
+        def __init__(self, option_strings, dest, **kwargs) -> None:
+            super().__init__(option_strings, dest, nargs=0, help="show the installed version and exit")
+
+        def __call__(self, parser, namespace, values, option_string=None) -> None:
+            print_version()
+
     p = Parser(prog="deepphy", description="Evaluate vision-language models on interactive physics (DeepPHY).")
-    p.add_argument("--version", action="version", version=f"deepphy {__version__}")
+    p.add_argument("--version", action=Version)
     sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
+    # the command named (the first word that is no option: the top level has none with a value)
+    named = next((a for a in argv if not a.startswith("-")), "") if argv is not None else None
 
-    run = sub.add_parser("run", help="run or resume an evaluation into a run directory")
+    def command(name: str, **kwargs):
+        parser = sub.add_parser(name, **kwargs)
+        every = named is None or (named and named not in COMMANDS)  # all of them, or a misspelt one's error
+        return parser if every or named == name else _NotAsked()
+
+    run = command("run", help="run or resume an evaluation into a run directory")
     run.add_argument("--suite", metavar="NAME|FILE",
                      help="run every cell of a suite (`paper`, or a suite YAML file) into --out, one run directory "
                           "per cell, in one Ray runtime; the suite sets the environments, formats, runs and seed")
@@ -61,8 +95,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--env-option", action="append", metavar="KEY=VALUE",
                      help="environment option, e.g. annotate=false (repeatable)")
     run.add_argument("--address", help="join an existing Ray cluster (default: start a local one)")
-    run.add_argument("--num-cpus", type=int, default=2, help="CPUs of the local cluster; default 2")
-    run.add_argument("--env-workers", type=int, help="environment worker actors (default: one per CPU)")
+    run.add_argument("--in-process", action="store_true",
+                     help="no Ray: the same scheduler, protocol and records with the environment and the model "
+                          "client in this process (a quick check of a prompt or an endpoint)")
+    run.add_argument("--num-cpus", type=int, help="CPUs of the local cluster; default 2")
+    run.add_argument("--env-workers", type=int, help="environment worker actors (default: one per CPU; "
+                     "--in-process: one thread)")
     run.add_argument("--env-resource", metavar="NAME",
                      help="place environment workers only on nodes with this custom Ray resource")
     run.add_argument("--max-in-flight", type=int, default=256, help="episodes in progress at once; default 256")
@@ -74,14 +112,14 @@ def build_parser() -> argparse.ArgumentParser:
                           "rendered prompts of its first tasks, cost, time at the rate limit) without calling it or "
                           "writing anything")
 
-    rep = sub.add_parser("report", help="print the paper-style table of one or more run directories")
+    rep = command("report", help="print the paper-style table of one or more run directories")
     rep.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
                      help="run directories of one environment (e.g. VLA, WM and MOCK) for one combined table")
     fmt = rep.add_mutually_exclusive_group()
     for flag in ("json", "csv", "markdown", "latex"):
         fmt.add_argument(f"--{flag}", action="store_true", help=f"print {flag} instead of a text table")
 
-    board = sub.add_parser("leaderboard", help="the master table across run directories: a row per model x format, "
+    board = command("leaderboard", help="the master table across run directories: a row per model x format, "
                            "a column group per environment")
     board.add_argument("paths", nargs="+", metavar="ROOT_OR_RUN_DIR",
                        help="run directories, or directories holding them (a suite root) up to three folders down")
@@ -89,12 +127,12 @@ def build_parser() -> argparse.ArgumentParser:
     for flag in ("json", "csv", "markdown", "latex"):
         fmt.add_argument(f"--{flag}", action="store_true", help=f"print {flag} instead of a text table")
 
-    envs = sub.add_parser("envs", help="list environments and their task counts")
+    envs = command("envs", help="list environments and their task counts")
     envs.add_argument("--tasks", metavar="ENV", help="list the task ids of one environment, one a line (they paste "
                                                      "into `run --tasks`)")
     envs.add_argument("--groups", action="store_true", help="with --tasks: each id's group after a tab")
 
-    watch = sub.add_parser("watch", help="stream the live progress of a run, or of every run on a Ray cluster")
+    watch = command("watch", help="stream the live progress of a run, or of every run on a Ray cluster")
     watch.add_argument("run_dir", nargs="?", metavar="RUN_DIR",
                        help="a run directory a `deepphy run` is writing now (a local run included): joins its Ray "
                             "cluster and follows that run until it ends")
@@ -103,7 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
     watch.add_argument("--once", action="store_true", help="print one snapshot per live run and exit")
     watch.add_argument("--json", action="store_true", help="one JSON object per line (for dashboards)")
 
-    dash = sub.add_parser("dashboard", help="live web dashboard of run directories (and of the runs on a Ray cluster)")
+    dash = command("dashboard", help="live web dashboard of run directories (and of the runs on a Ray cluster)")
     dash.add_argument("run_dirs", nargs="*", metavar="RUN_DIR",
                       help="run directories, or directories of run directories (new ones join the page as they "
                            "appear; so does a run started later into a directory given here)")
@@ -111,7 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
     dash.add_argument("--host", default="127.0.0.1", help="interface to listen on; default 127.0.0.1 (this machine only)")
     dash.add_argument("--port", type=int, default=8700, help="port; default 8700, 0 picks a free one")
 
-    play = sub.add_parser("play", help="play the tasks yourself in the browser, recorded as a run (model human:NAME)")
+    play = command("play", help="play the tasks yourself in the browser, recorded as a run (model human:NAME)")
     play.add_argument("--env", help="environment (see `deepphy envs`); default: the one of the run directory given, "
                       "else iphyre")
     play.add_argument("--player", help="your name (letters, digits, . _ -): the run's model is human:NAME; "
@@ -128,15 +166,15 @@ def build_parser() -> argparse.ArgumentParser:
     play.add_argument("--host", default="127.0.0.1", help="interface to listen on; default 127.0.0.1 (this machine only)")
     play.add_argument("--port", type=int, default=8710, help="port; default 8710, 0 picks a free one")
 
-    plot = sub.add_parser("plot", help="draw the paper's figures of one or more run directories (PNG and PDF)")
+    plot = command("plot", help="draw the paper's figures of one or more run directories (PNG and PDF)")
     plot.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
                       help="run directories, or directories holding them (a suite root) up to three folders down")
     plot.add_argument("--out", required=True, help="directory for the figures")
 
-    repair = sub.add_parser("repair", help="set aside what a resume cannot go on from (see the README's Run directory)")
+    repair = command("repair", help="set aside what a resume cannot go on from (see the README's Run directory)")
     repair.add_argument("run_dir", metavar="RUN_DIR")
 
-    export = sub.add_parser("export", help="write the decisions of run directories as a Parquet dataset")
+    export = command("export", help="write the decisions of run directories as a Parquet dataset")
     export.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
     export.add_argument("--out", required=True, help="dataset directory (Parquet, images, README.md)")
     export.add_argument("--layout", choices=["decisions", "chat"], default="decisions",
@@ -144,7 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "conversation the model saw plus its reply, images by path, for fine-tuning")
 
     # --help is the solver's own once an environment is named: `solve --env phyre --help`
-    solve = sub.add_parser("solve", add_help=False,
+    solve = command("solve", add_help=False,
                            help="search an environment's tasks for solving actions (its solvability report)")
     solve.add_argument("-h", "--help", action="store_true",
                        help="this help; with --env, the help of that environment's solver (its commands and options)")
@@ -153,7 +191,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the solver's own arguments; default `report`, the solvability report")
     solve.set_defaults(usage=solve)
 
-    show = sub.add_parser("show", help="write the images a model would see for one task")
+    show = command("show", help="write the images a model would see for one task")
     show.add_argument("--env", required=True)
     show.add_argument("--task", required=True)
     show.add_argument("--out", required=True, help="directory for the PNG files")
@@ -200,25 +238,61 @@ SUITE_SETS = ("env", "format", "runs", "seed", "tasks", "limit", "max_attempts",
 
 def _validated(make):
     """`make()`, a Pydantic model built from flags: a validation error as one line."""
+    from pydantic import ValidationError
+
+    from deepphy.messages import validation_message
+
     try:
         return make()
     except ValidationError as e:
         raise UserError(validation_message(e)) from None
 
 
-def cmd_run(args: argparse.Namespace) -> int:
-    from deepphy.runner import evaluate
+def print_version() -> None:
+    from deepphy import installed_version
 
+    print(f"deepphy {installed_version()}")
+    raise SystemExit(0)
+
+
+def start_view(argv: list[str]):
+    """`run`'s first line, said before anything but the standard library's `os` and `sys` is
+    imported: on a terminal; a log hears of the checks only should they take a while, so an
+    error stays the one line of a run that did not start. None for any other command."""
+    if not argv or argv[0] != "run" or any(a in argv for a in ("--no-progress", "-h", "--help")):
+        return None
+    from deepphy.start_view import StartView
+
+    view = StartView(sys.stderr)
+    view.say("checking the suite" if "--suite" in argv else "checking the run", at_once=view.tty)
+    return view
+
+
+def cmd_run(args) -> int:
+    from pathlib import Path
+
+    from deepphy.config import RunConfig, RuntimeOptions
+
+    view = getattr(args, "start_view", None)  # main's (start_view)
+    if view and args.no_progress:  # asked for by an abbreviation (--no-prog)
+        view.stop()
+        view = None
+    given = {"address": args.address, "num_cpus": args.num_cpus, "env_workers": args.env_workers,
+             "env_resource": args.env_resource}
     runtime = _validated(lambda: RuntimeOptions(
-        address=args.address, num_cpus=args.num_cpus, env_workers=args.env_workers, env_resource=args.env_resource,
+        **{k: v for k, v in given.items() if v is not None}, in_process=args.in_process,
         max_in_flight=args.max_in_flight, progress=not args.no_progress, max_cost_usd=args.max_cost,
         # absolute: model workers may run in another directory
         models_file=str(Path(args.models_file).resolve()) if args.models_file else None,
     ))
+    if args.in_process and args.num_cpus is not None:
+        raise UserError("--in-process runs without Ray: it takes no --num-cpus")
     if args.agent_arg and not args.agent:
         raise UserError("--agent-arg needs --agent")
     if args.suite:
-        return run_suite_command(args, runtime)
+        if args.in_process:
+            raise UserError("--in-process runs one run directory; a suite runs on Ray")
+        return run_suite_command(args, runtime, view)
     model, agent = "mock", None
     if args.agent:
         from deepphy.agent import load_agent
@@ -246,9 +320,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.dry_run:
         from deepphy.estimate import estimate, render
 
-        print(render([estimate(config, runtime.models_file)]))
+        if view:
+            view.say("measuring the prompts of the first tasks", at_once=view.tty)
+        table = render([estimate(config, runtime.models_file, max_in_flight=runtime.max_in_flight)])
+        if view:
+            view.stop()
+        print(table)
         return 0
-    outcome = evaluate(config, args.out or DEFAULT_OUT, runtime)
+    from deepphy.runner import evaluate
+
+    outcome = evaluate(config, args.out or DEFAULT_OUT, runtime, view=view)
     lines, status = run_summary(outcome)
     print(lines[0])
     for line in lines[1:]:
@@ -256,7 +337,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     return status
 
 
-def run_suite_command(args: argparse.Namespace, runtime: RuntimeOptions) -> int:
+def run_suite_command(args: argparse.Namespace, runtime, view=None) -> int:
+    from pathlib import Path
+
     from deepphy import suite as S
 
     given = [f"--{name.replace('_', '-')}" for name in SUITE_SETS if getattr(args, name) is not None]
@@ -274,13 +357,18 @@ def run_suite_command(args: argparse.Namespace, runtime: RuntimeOptions) -> int:
         if args.dry_run:
             from deepphy.estimate import estimate, render, render_by_model
 
-            estimates = [estimate(c.config, runtime.models_file, label=c.dir) for c in S.cells(suite, models)]
+            if view:
+                view.say("measuring the prompts of the first tasks of every cell", at_once=view.tty)
+            estimates = [estimate(c.config, runtime.models_file, label=c.dir, max_in_flight=runtime.max_in_flight)
+                         for c in S.cells(suite, models)]
+            if view:
+                view.stop()
             print(render(estimates))
             if len({e.model for e in estimates}) > 1:
                 print()
                 print(render_by_model(estimates, retirement_status(models, runtime.models_file)))
             return 0
-        outcomes = S.run_suite(suite, root, runtime, models, cell_lines=args.cell_lines)
+        outcomes = S.run_suite(suite, root, runtime, models, cell_lines=args.cell_lines, view=view)
     except S.SuiteError as e:
         raise UserError(str(e)) from None
     complete = sum(o.done == o.total for o in outcomes)
@@ -317,16 +405,31 @@ def retirement_status(models: list[str], models_file: str | None) -> dict[str, s
     return {c.name: c.retirement.status(datetime.date.today()) for c in retiring(models, models_file)}
 
 
+def _task_ids(text: str | None) -> list[str] | None:
+    """`--tasks`: ids separated by commas, spaces or lines (`deepphy envs --tasks ENV`'s output
+    pastes in); None when none are given."""
+    import re
+
+    ids = [t for t in re.split(r"[,\s]+", text or "") if t]
+    return ids or None
+
+
 def run_summary(outcome) -> tuple[list[str], int]:
-    """The lines `deepphy run` ends with, and its exit status (1 if anything is left to do)."""
-    lines = [f"run directory: {outcome.out} ({outcome.episodes_done}/{outcome.episodes_total} episodes complete, "
-             f"{outcome.new_records} new attempt records)"]
+    """The lines `deepphy run` ends with, and its exit status (1 if anything is left to do).
+    A run that recorded nothing leaves no directory it made (deepphy.runs.store): its lines
+    never name one."""
+    written = outcome.out.is_dir()
+    counts = (f"{outcome.episodes_done}/{outcome.episodes_total} episodes complete, {outcome.new_records} new "
+              "attempt records")
+    lines = [f"run directory: {outcome.out} ({counts})" if written
+             else f"nothing was recorded ({counts}); no run directory was written"]
     if outcome.errored:
+        where = outcome.out / "errors.jsonl" if written else "the run directory, which was not kept"
         lines.append(f"{len(outcome.errored)} attempt(s) failed with an error (details and tracebacks in "
-                     f"{outcome.out / 'errors.jsonl'}); first: {outcome.errored[0][:200]}")
+                     f"{where}); first: {outcome.errored[0][:200]}")
     lines += [f"unfinished: {line}" for line in outcome.unfinished[:10]]
     if not outcome.complete:
-        lines.append("the run is incomplete; run the same command again to resume it")
+        lines.append(f"the run is incomplete; run the same command again to {'resume' if written else 'start'} it")
         return lines, 1
     lines.append(f"next: deepphy report {outcome.out}")
     return lines, 0
@@ -379,6 +482,8 @@ def _board_reports(paths: list[Path], plain_runs: bool = False) -> dict[Path, di
 
 
 def cmd_leaderboard(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
     from deepphy.metrics import leaderboard as L
 
     reports = _board_reports(list(map(Path, args.paths)))
@@ -392,13 +497,6 @@ def cmd_leaderboard(args: argparse.Namespace) -> int:
         print(f"deepphy: warning: {note}", file=sys.stderr)
     print(render(board))
     return 0
-
-
-def _task_ids(text: str | None) -> list[str] | None:
-    """`--tasks`: ids separated by commas, spaces or lines (`deepphy envs --tasks ENV`'s output
-    pastes in); None when none are given."""
-    ids = [t for t in re.split(r"[,\s]+", text or "") if t]
-    return ids or None
 
 
 def cmd_envs(args: argparse.Namespace) -> int:
@@ -422,7 +520,12 @@ def cmd_envs(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from pydantic import ValidationError
+
     from deepphy.envs import get_spec
+    from deepphy.messages import validation_message
 
     cls = get_spec(args.env).load()
     try:
@@ -530,9 +633,9 @@ def _shown_path(path: str | None) -> str:
 
 def cmd_dashboard(args: argparse.Namespace) -> int:
     import asyncio
+    from pathlib import Path
 
     from deepphy import webguard
-
     from deepphy.dashboard.server import TOKEN_ENV, Dashboard, serve
     from deepphy.dashboard.source import RunSource, is_run_dir, runs_in
 
@@ -576,10 +679,15 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
 def cmd_play(args: argparse.Namespace) -> int:
     import asyncio
     import getpass
+    from pathlib import Path
 
-    from deepphy import webguard
+    from pydantic import ValidationError
+
+    from deepphy.config import RunConfig
+    from deepphy.messages import validation_message
     from deepphy.play import background
     from deepphy.play.human import HUMAN_PREFIX, player_model
+    from deepphy import webguard
     from deepphy.play.server import TOKEN_ENV, serve
     from deepphy.play.session import PlaySession
     from deepphy.runs.store import CONFIG, read_config
@@ -638,6 +746,8 @@ def cmd_play(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
     from deepphy.dashboard.source import is_run_dir
     from deepphy.metrics.leaderboard import LeaderboardError, leaderboard
     from deepphy.metrics.report import mixed_task_sets
@@ -658,6 +768,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
     written = plot_all(reports, args.out, board)
     if not written:
         raise UserError("none of the figures applies to these run directories")
+    import json
+
     drawn = json.loads((Path(args.out) / "figures.json").read_text())
     for note in (n for figure in drawn.values() if isinstance(figure, dict) for n in figure.get("notes", [])):
         print(f"deepphy: note: {note}", file=sys.stderr)
@@ -702,30 +814,57 @@ COMMANDS = {"run": cmd_run, "report": cmd_report, "leaderboard": cmd_leaderboard
             "export": cmd_export, "repair": cmd_repair}
 
 
-def main(argv: list[str] | None = None) -> int:
-    from deepphy.agent import AgentError
-    from deepphy.envs import UnknownEnvironment
-    from deepphy.envs.shortcuts import UnknownShortcut
-    from deepphy.local_ray import RayStartFailed
-    from deepphy.models import AccessDenied, MissingKey, ModelsFileError, UnknownModel
-    from deepphy.runner import ClusterUnavailable, ConfigError, quiet_environment
-    from deepphy.runs.store import RunDirError
+# The errors a user can fix, besides UserError, by the module that defines them: one line,
+# exit status 2. Looked up among the modules loaded by then: an error of a module never
+# imported cannot have been raised, and `--version`, `--help` and a bad flag import none.
+USER_ERRORS = {
+    "deepphy.runner": ("ConfigError", "ClusterUnavailable"),
+    "deepphy.runs.store": ("RunDirError",),
+    "deepphy.envs": ("UnknownEnvironment",),
+    "deepphy.envs.shortcuts": ("UnknownShortcut",),
+    "deepphy.agent": ("AgentError",),
+    "deepphy.models": ("UnknownModel",),
+    "deepphy.models.base": ("AccessDenied", "RequestRejected"),
+    "deepphy.models.config": ("MissingKey", "ModelsFileError"),
+    "deepphy.local_ray": ("RayStartFailed",),
+}
 
-    quiet_environment()
+
+def user_errors() -> tuple[type[BaseException], ...]:
+    loaded = [(sys.modules[m], names) for m, names in USER_ERRORS.items() if m in sys.modules]
+    return (UserError, *(getattr(module, name) for module, names in loaded for name in names))
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv == ["--version"]:  # answered before argparse is imported (its import is half the work)
+        print_version()
+    view = start_view(argv)
     try:
-        args = build_parser().parse_args(argv)
-        return COMMANDS[args.command](args)
-    except (UserError, ConfigError, RunDirError, UnknownEnvironment, UnknownModel, MissingKey, ModelsFileError,
-            ClusterUnavailable, RayStartFailed, AccessDenied, UnknownShortcut, AgentError) as e:
-        print(f"deepphy: error: {one_line(str(e))}", file=sys.stderr)
-        return 2
+        try:
+            args = build_parser(argv).parse_args(argv)
+            if view:
+                view.repeat()
+            args.start_view = view
+            from deepphy.ray_env import quiet_environment
+
+            quiet_environment()
+            return COMMANDS[args.command](args)
+        finally:  # before any error line: on a terminal the view's line is cleared
+            if view:
+                view.stop()
     except BrokenPipeError:  # output piped into `head` and friends
         sys.stderr.close()
         return 0
     except KeyboardInterrupt:
         print(INTERRUPTED, file=sys.stderr)
         return 130
-    except Exception as e:  # noqa: BLE001 - a bug: one line here, the whole traceback in a file
+    except Exception as e:  # noqa: BLE001 - a user's error in one line; a bug: one line, the traceback in a file
+        if isinstance(e, user_errors()):
+            from deepphy.messages import one_line
+
+            print(f"deepphy: error: {one_line(str(e))}", file=sys.stderr)
+            return 2
         return _crashed(e)
 
 
@@ -741,10 +880,11 @@ def _crashed(error: Exception) -> int:
         where = f"the traceback is in {path}"
     except OSError:
         where = "no file could be written for the traceback"
+    from deepphy.messages import one_line
+
     message = one_line(str(error))[:300] or "(no message)"
     print(f"deepphy: error: unexpected {type(error).__name__}: {message} ({where}; please report it)", file=sys.stderr)
     return 1
-
 
 
 if __name__ == "__main__":

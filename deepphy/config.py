@@ -11,7 +11,6 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serial
 
 from deepphy.chat import PromptFormat
 
-DEFAULT_OUT = "runs/demo"
 # What a run may ask for; its records are held to the same bounds (deepphy/runs/records.py).
 RUNS_MAX = 100_000  # repetitions of every task
 ATTEMPTS_MAX = 1_000  # attempts per task (the protocol's K is 10 at most)
@@ -133,6 +132,7 @@ class RuntimeOptions(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     address: str | None = None  # join an existing Ray cluster; None: start a local one
+    in_process: bool = False  # the workers in this process, no Ray (deepphy.in_process)
     num_cpus: int = Field(2, ge=1)  # local cluster only
     env_workers: int | None = Field(None, ge=1)  # default: one per CPU of the cluster
     env_resource: str | None = None  # custom Ray resource that marks the nodes for env workers
@@ -143,3 +143,11 @@ class RuntimeOptions(BaseModel):
     attempt_retries: int = Field(5, ge=0)  # re-runs of an attempt whose worker died (after 1, 2, 4, ... s)
     max_cost_usd: float | None = Field(None, gt=0)  # stop, resumably, once the run's model cost reaches this
     models_file: str | None = None  # YAML of model endpoints (absolute: workers may run elsewhere)
+
+    @model_validator(mode="after")
+    def _in_process_alone(self) -> "RuntimeOptions":
+        if self.in_process and self.address:
+            raise ValueError("--in-process runs without Ray: it takes no --address")
+        if self.in_process and self.env_resource:
+            raise ValueError("--in-process runs without Ray: it takes no --env-resource")
+        return self

@@ -15,9 +15,15 @@ run's seed, run 0) plays the same sampled tasks in-process through the real atte
 protocol, and its mean requests per episode times the run's episodes is the figure. A
 model that solves more tasks than random asks fewer (down to the lower bound), one that
 never solves asks the upper bound; for most cells the two are close, as random solves
-little. The expected wall time divides the expected requests by the endpoint's
-requests/min; a suite's runs all its endpoints at once, so its figure is the slowest
-endpoint's sum.
+little.
+
+The times are what the endpoint's limiter lets through (`limit_seconds`), under every limit
+it enforces at once: requests/min (paced), tokens/min (each request reserving its input and
+max_tokens until it is answered, then its actual use), max_concurrent (and the run's
+episodes in flight). `time>=`: every request, answered at once with no output (the least
+the limits allow); `time~`: the expected requests, each reply taking REPLY_S and using
+max_tokens. A suite runs all its endpoints at once, so its figure is the slowest endpoint's
+sum.
 
 Image tokens follow each provider's published rule (IMAGE_TOKEN_RULES, with its source
 and the date it was read); text tokens are estimated as characters / 4 (CHARS_PER_TOKEN),
@@ -36,12 +42,14 @@ from deepphy.agents import endpoint_config
 from deepphy.chat import Image, ImagePart, Message, TextPart
 from deepphy.config import RunConfig
 from deepphy.envs.base import Planning
-from deepphy.models.config import ModelConfig, Provider
+from deepphy.models.config import ModelConfig, Provider, RateLimits
+from deepphy.models.limiter import WINDOW_S
 from deepphy.prompts import PastAttempt, PastStep, build_messages
 from deepphy.seeding import seeded_rng
 
 CHARS_PER_TOKEN = 4  # text tokens ~ characters / 4 (OpenAI's and Anthropic's rule of thumb)
 DEFAULT_SAMPLE = 3  # tasks per run whose prompts are rendered and measured
+REPLY_S = 10.0  # time~: how long a reply is assumed to take (a typical VLM answer; no model is called)
 
 
 def _openai_image_tokens(w: int, h: int) -> int:
@@ -119,18 +127,40 @@ class CellEstimate:
     cost_input_max: float | None  # USD; None where the price is unknown
     cost_output_max: float | None
     price_known: bool
-    rate_limit_min: float | None  # minutes at the endpoint's requests/min for requests_max
+    rate_limit_min: float | None  # time>=: minutes the endpoint's limits take for requests_max at the least
     sampled: int
     requests_expected: float = 0.0  # what the reference random baseline asks (see the module)
     endpoint: str | None = None  # the endpoint's limiter key (cells of one endpoint share its limit)
-    requests_per_min: float | None = None
     model: str = ""  # the agent's name (a suite's per-model summary groups by it)
     note: str | None = None  # a user's agent whose model cost cannot be bounded: why (one line)
+    expected_min: float | None = None  # time~: minutes the limits take for requests_expected (see the module)
 
-    @property
-    def expected_min(self) -> float | None:
-        """Minutes the expected requests take at the endpoint's requests/min."""
-        return self.requests_expected / self.requests_per_min if self.requests_per_min else None
+
+def limit_seconds(limits: RateLimits, requests: float, input_tokens: float, max_tokens: int, reply_s: float,
+                  output_tokens: float, in_flight: int) -> float:
+    """Seconds an endpoint's limiter (deepphy.models.limiter) takes to grant `requests`
+    requests of `input_tokens` input tokens in all, each holding its input + `max_tokens`
+    while its reply (`reply_s` long, `output_tokens` used) is awaited, at most `in_flight` of
+    them at once (the run's episodes in progress): the slowest of its limits. Each is its
+    steady pace, less what the first window lets through at once; tests/test_estimate.py
+    checks them against the limiter itself on a virtual clock."""
+    if requests <= 0:
+        return 0.0
+    window = WINDOW_S + limits.window_margin_s
+    reserved = input_tokens / requests + max_tokens  # what a grant needs room for
+    used = input_tokens / requests + output_tokens  # what it counts once answered
+    seconds = [0.0]
+    if limits.requests_per_min:  # paced: `burst` at once, then one every window / rpm
+        seconds.append(max(0.0, requests - limits.burst) * window / limits.requests_per_min)
+    if limits.tokens_per_min:  # a grant needs what the window holds plus `reserved` to fit in T
+        held = min(reply_s, window)
+        per_request = (held * reserved + (window - held) * used) / window  # what a request holds of a window
+        room = limits.tokens_per_min - reserved  # what the window may hold when a request is granted
+        per_window = math.floor(room / per_request) + 1 if room >= 0 else 1  # over the limit: alone in a window
+        seconds.append(max(0.0, requests - per_window) * window / per_window)
+    if reply_s > 0:
+        seconds.append(requests * reply_s / min(limits.max_concurrent or in_flight, in_flight))
+    return max(seconds)
 
 
 @dataclass(frozen=True)
@@ -211,8 +241,10 @@ def measure(config: RunConfig, sample: int = DEFAULT_SAMPLE) -> list[TaskPrompts
 
 
 def estimate(config: RunConfig, models_file: str | None = None, sample: int = DEFAULT_SAMPLE,
-             label: str | None = None) -> CellEstimate:
-    """Measure the prompts of `config`'s first `sample` tasks and bound the whole run."""
+             label: str | None = None, max_in_flight: int | None = None) -> CellEstimate:
+    """Measure the prompts of `config`'s first `sample` tasks and bound the whole run
+    (`max_in_flight`: the run's episodes in progress at once; default the runtime's)."""
+    from deepphy.config import RuntimeOptions
     from deepphy.runner import resolve
 
     if config.agent is not None:
@@ -259,7 +291,16 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
                                       or endpoint.price.output_per_mtok > 0)
     input_max = episodes * sum(totals) / n_sampled if rule is not None else None
     played = baseline_requests(config, sample)
-    rpm = endpoint.rate_limits.requests_per_min if endpoint is not None else None
+    expected = episodes * sum(played) / len(played)
+    limits = endpoint.rate_limits if endpoint is not None and endpoint.rate_limits.enabled else None
+    in_flight = min(max_in_flight or RuntimeOptions().max_in_flight, episodes)
+
+    def minutes(requests: float, reply_s: float, output_tokens: int) -> float | None:
+        if limits is None or input_max is None:
+            return None
+        tokens = input_max * requests / requests_max  # at the run's mean input per request
+        return limit_seconds(limits, requests, tokens, max_tokens, reply_s, output_tokens, in_flight) / 60
+
     return CellEstimate(
         label=label or f"{config.env} {config.model} {config.format.value}",
         episodes=episodes,
@@ -277,12 +318,12 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
         cost_input_max=input_max * endpoint.price.input_per_mtok / 1e6 if known else None,
         cost_output_max=requests_max * max_tokens * endpoint.price.output_per_mtok / 1e6 if known else None,
         price_known=known,
-        rate_limit_min=requests_max / rpm if rpm else None,
+        rate_limit_min=minutes(requests_max, 0.0, 0),
         sampled=n_sampled,
-        requests_expected=episodes * sum(played) / len(played),
+        requests_expected=expected,
         endpoint=endpoint.limiter_key if endpoint is not None else None,
-        requests_per_min=rpm,
         model=config.model,
+        expected_min=minutes(expected, REPLY_S, max_tokens or 0),
     )
 
 
@@ -340,7 +381,9 @@ def render(cells: list[CellEstimate]) -> str:
         f"{CHARS_PER_TOKEN}, image tokens by the provider's rule; out cost<= if every reply used max_tokens; "
         "requests~: what the reference random baseline (MOCK, the run's seed) asks on those tasks, per episode, "
         "times the episodes (a model that solves more asks fewer); time~ and time>=: requests~ and requests<= at "
-        "the endpoint's requests/min (a suite's total: its slowest endpoint, as endpoints run at once).",
+        "every limit of the endpoint's limiter (requests/min, tokens/min with each request holding its input and "
+        f"max_tokens until answered, max_concurrent), time~ with replies of {REPLY_S:g} s using max_tokens, time>= "
+        "with replies at once (a suite's total: its slowest endpoint, as endpoints run at once).",
         *(f"note: {c.note}" for c in cells if c.note),
     ])
 
@@ -351,7 +394,7 @@ def suite_time(cells: list[CellEstimate]) -> list[str]:
     expected: dict[str, float] = {}
     bound: dict[str, float] = {}
     for c in cells:
-        if c.endpoint is not None and c.requests_per_min:
+        if c.endpoint is not None and c.rate_limit_min is not None:
             expected[c.endpoint] = expected.get(c.endpoint, 0.0) + c.expected_min
             bound[c.endpoint] = bound.get(c.endpoint, 0.0) + c.rate_limit_min
     if not expected:
@@ -433,7 +476,6 @@ def estimate_agent(config: RunConfig, models_file: str | None = None, sample: in
     expected = total("requests_expected")
     # the endpoint that takes longest at its limit sets the run's time
     slowest, k = max(parts, key=lambda p: (p[0].rate_limit_min or 0.0) * p[1])
-    paced = slowest.requests_per_min is not None and slowest.requests_expected * k > 0
     return CellEstimate(
         label=label, episodes=first.episodes, attempts_max=first.attempts_max,
         requests_min=round(total("requests_min")), requests_max=round(total("requests_max")),
@@ -445,7 +487,6 @@ def estimate_agent(config: RunConfig, models_file: str | None = None, sample: in
         rate_limit_min=slowest.rate_limit_min * k if slowest.rate_limit_min is not None else None,
         sampled=first.sampled, requests_expected=expected,
         endpoint=slowest.endpoint,
-        # the rate at which this run's expected requests take as long as the slowest endpoint's share of them
-        requests_per_min=expected * slowest.requests_per_min / (slowest.requests_expected * k) if paced else None,
+        expected_min=slowest.expected_min * k if slowest.expected_min is not None else None,
         model=config.model,
     )

@@ -6,7 +6,9 @@ that, in one place, so a suite file, a models file and a command's flags read al
 
 from __future__ import annotations
 
-from pydantic import ValidationError
+TYPE_CHECKING = False  # typing's, without importing it: one_line writes a command's quick error lines
+if TYPE_CHECKING:
+    from pydantic import ValidationError
 
 
 def one_line(text: str) -> str:

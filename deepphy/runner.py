@@ -17,16 +17,19 @@ from pydantic import ValidationError
 
 from deepphy import reaper
 from deepphy.config import RunConfig, RuntimeOptions
+from deepphy.ray_env import quiet_environment  # noqa: F401 - also the benchmarks' and tests'
 from deepphy.agent import AgentError
 from deepphy.agents import make_agent, run_endpoints
 from deepphy.collector import frozen_heap
 from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.messages import validation_message
 from deepphy.metrics import figures as F
-from deepphy.metrics.live import format_progress
+from deepphy.metrics.live import _duration, format_progress
 from deepphy.runs.records import summaries_json
 from deepphy.runs.status import RunStatus, remove_status, write_status
 from deepphy.runs.store import CONFIG, RunStore, check_records, read_records
+from deepphy.scheduler import ray_errors
+from deepphy.start_view import StartView
 
 RAY_TIMEOUT_S = 60.0
 # Ray takes 127.0.0.1 as "no address given" and advertises the machine's primary interface;
@@ -109,22 +112,6 @@ def resolve(config: RunConfig) -> tuple[EnvSpec, list[Task], int]:
     if not tasks:
         raise ConfigError("the task selection is empty")
     return spec, tasks, config.max_attempts or spec.max_attempts
-
-
-def quiet_environment() -> None:
-    """Environment variables for this process and the Ray processes it starts. Best before
-    `ray` is imported (Ray reads them at import time); the one that keeps a run from
-    packaging the working directory is also applied to an already imported Ray."""
-    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
-    os.environ.setdefault("RAY_DEDUP_LOGS", "0")
-    # Under `uv run`, Ray would otherwise package the working directory and build a second
-    # virtual environment for its workers; ours is already installed and identical.
-    os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
-    if "ray._private.ray_constants" in sys.modules:  # imported already: it read the variable then
-        from ray._private import ray_constants
-
-        ray_constants.RAY_ENABLE_UV_RUN_RUNTIME_ENV = ray_constants.env_bool("RAY_ENABLE_UV_RUN_RUNTIME_ENV", True)
 
 
 def ensure_ray(runtime: RuntimeOptions, say: Callable[[str], None] = lambda _: None) -> bool:
@@ -231,13 +218,14 @@ def _probe(host: str, port: int, address: str, timeout_s: float) -> None:
 
 
 def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None = None, *,
-             stream=sys.stderr, shared: Shared | None = None) -> RunOutcome:
+             stream=sys.stderr, shared: Shared | None = None, view: StartView | None = None) -> RunOutcome:
     """Run (or resume) an evaluation into `out`. Every check that needs no Ray comes first
     and raises ConfigError / RunDirError / the models' errors (unknown model, missing key)
     before Ray starts and without writing anything; a finished run returns at once, without
-    Ray. `shared`: a suite's environment workers and limiters, used and left running."""
-    import ray
-
+    Ray. `shared`: a suite's environment workers and limiters, used and left running.
+    `runtime.in_process`: the workers in this process, no Ray (deepphy.in_process).
+    `view`: the command's start view (one is made here if the runtime shows progress)."""
+    began = time.time()
     runtime = runtime or RuntimeOptions()
     spec, tasks, k_max = resolve(config)
     endpoints = run_endpoints(config, runtime.models_file)
@@ -256,107 +244,184 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
     except BaseException:
         store.discard()
         raise
-    view = StartView(stream) if runtime.progress else None
-    say = view.say if view else (lambda _: None)
+    if view is None and runtime.progress:
+        view = StartView(stream)
+    if view:
+        view.repeat()
+    run = _Run(config, runtime, spec, tasks, k_max, store, existing, done, total, stream, began, view)
     try:
-        started_ray = ensure_ray(runtime, say)  # no cluster at the address: fails before anything is written
-    except BaseException:
-        if view:
-            view.stop()
-        store.discard()
-        raise
-    from deepphy.actors.metrics_actor import make_metrics_actor
-    from deepphy.actors.model_worker import make_model_worker
-    from deepphy.actors.rate_limiter import ensure_limiter
-    from deepphy.scheduler import AgentWorkerModel, Scheduler, WorkerModel
-
-    actors: list[Any] = []
-    model_actors: list[Any] = []
-    try:
-        say("starting workers")
-        # Named "deepphy/<run id>/<role>": a dashboard or an operator can find a live run's
-        # metrics actor (ray.util.list_named_actors) and poll its snapshot.
-        prefix = f"deepphy/{uuid.uuid4().hex[:8]}"
-        status = RunStatus(run_id=prefix.split("/")[1], pid=os.getpid(), phase="starting", since=time.time(),
-                           ray_address=ray.get_runtime_context().gcs_address,
-                           ray_auth=os.environ.get("RAY_AUTH_MODE"))
-        write_status(store.path, status)
-        if runtime.progress:  # where `deepphy watch` and `deepphy dashboard --address` find this run
-            print(f"deepphy: run {status.run_id} on Ray at {status.ray_address}; follow it with "
-                  f"`deepphy watch {out}`", file=stream, flush=True)
-        if shared is not None:
-            env_workers = shared.env_workers
-        else:
-            env_workers = make_env_workers(spec, config.env_options, runtime, f"{prefix}/env",
-                                           lambda i: store.log_path(f"env{i}"))
-        # The driver owns the endpoints' limiters, so a model worker's restart keeps their windows.
-        limiters = [limiter for e in endpoints if (limiter := ensure_limiter(e)) is not None]
-        if not endpoints and config.agent is None:  # a random baseline answers in microseconds: no worker, no Ray call
-            model, model_actors = make_agent(config.model), []
-        else:
-            worker = shared.agent_workers.get(config.model) if shared is not None else None
-            model_actors = [] if worker is not None else [
-                make_model_worker(config.model, spec, name=f"{prefix}/model", models_file=runtime.models_file,
-                                  max_concurrency=max(1000, runtime.max_in_flight), agent=config.agent)]
-            worker = worker or model_actors[0]
-            probe = (store.path / CONFIG).resolve()
-            try:
-                seen = _started(worker.read_file.remote(str(probe)), "the model worker", runtime)
-            except ray.exceptions.RayActorError as e:
-                if config.agent is None or not e.actor_init_failed:
-                    raise
-                # its node's install differs from the driver's (another version, a missing dependency)
-                said = _raised(e).removeprefix(f"{AgentError.__module__}.{AgentError.__name__}: ")
-                raise AgentError(f"{said} (in the agent's model worker, which could not start)") from None
-            shares_files = seen == probe.read_bytes()
-            model = (AgentWorkerModel(worker, shares_files, config) if config.agent is not None
-                     else WorkerModel(worker, shares_files))
-        metrics = make_metrics_actor(total, k_max, spec.max_steps, name=f"{prefix}/metrics", run={
-            "run_dir": str(Path(out).resolve()), "config": config.model_dump(mode="json")})
-        actors = [*(env_workers if shared is None else []), *model_actors, metrics,
-                  *(limiters if shared is None else [])]
-        # Not waited for here: the metrics actor's process starts while the workers start and the
-        # first attempts run (its calls queue in order until it is up); `_drive` checks it came up.
-        metrics_ready = metrics.add.remote(summaries_json([r.summary() for r in existing]), resumed=True)
-        if view:
-            view.stop()
-            view = None
-        scheduler = Scheduler(config, runtime, spec, tasks, store, env_workers, model, metrics, k_max)
-        if shared is not None:
-            shared.watch(metrics, scheduler)
-        with frozen_heap():  # the heap of the start, Ray's included, is not scanned again (deepphy/collector.py)
-            asyncio.run(_drive(scheduler, existing, env_workers, metrics, metrics_ready, runtime, stream, store.path,
-                               status))
-        # What the directory held at the start and what this session wrote to it (the store
-        # raises on a write that fails): not the log read back, which took ~0.13 ms a record
-        # (0.3 s at the end of a 2,500-attempt run).
-        return RunOutcome(
-            out=Path(out),
-            episodes_total=total,
-            episodes_done=done + scheduler.episodes_finished,
-            new_records=scheduler.recorded,
-            unfinished=scheduler.failed,
-            errored=scheduler.errored,
-            worker_stats=_worker_stats(env_workers),
-        )
+        return run.in_process() if runtime.in_process else run.on_ray(endpoints, shared)
     finally:
         if view:
             view.stop()
         remove_status(store.path)
         store.discard()  # closes; removes a directory this run made and recorded nothing in
-        # A model worker closes its connections itself, or its client complains as it dies.
+
+
+@dataclass
+class _Run:
+    """One evaluation once its checks have passed: its workers (on Ray, or in this process),
+    its scheduler and the live views, driven to the end."""
+
+    config: RunConfig
+    runtime: RuntimeOptions
+    spec: EnvSpec
+    tasks: list[Task]
+    k_max: int
+    store: RunStore
+    existing: list
+    done: int  # episodes finished before this session
+    total: int
+    stream: Any
+    began: float  # time.time() when the run began: its elapsed time counts from here
+    view: StartView | None  # what the run is doing until its progress line begins
+
+    def say(self, phase: str) -> None:
+        if self.view:
+            self.view.say(phase)
+
+    def in_process(self) -> RunOutcome:
+        """The workers in this process (deepphy.in_process): no Ray imported or started."""
+        from deepphy.actors.env_worker import EnvWorkerImpl
+        from deepphy.actors.metrics_actor import MetricsImpl
+        from deepphy.in_process import Actor, ThreadLoop
+        from deepphy.scheduler import LocalAgentModel
+
+        self.say("starting the environment in this process")
+        status = RunStatus(run_id=uuid.uuid4().hex[:8], pid=os.getpid(), phase="starting", since=time.time())
+        write_status(self.store.path, status)
+        spec, options = self.spec, self.config.env_options
+        loops = [ThreadLoop(f"deepphy-env{i}") for i in range(self.runtime.env_workers or 1)]
         try:
-            closing = [worker.close.remote() for worker in model_actors]
-            if closing:
-                ray.wait(closing, num_returns=len(closing), timeout=10)
-        except Exception:  # noqa: BLE001 - a lost worker has nothing to close
-            pass
-        for actor in actors:
+            env_workers = [Actor(lambda: EnvWorkerImpl(spec, options), t.loop) for t in loops]
+            model = make_agent(self.config.model, self.runtime.models_file, agent=self.config.agent)  # its own limiter
+            if self.config.agent is not None:  # told when an episode ends, to release its state
+                model = LocalAgentModel(model, self.config)
+            metrics = Actor(lambda: MetricsImpl(self.total, self.k_max, spec.max_steps, run=self._run_info(),
+                                                started=self.began))
+            return self._drive(env_workers, model, metrics, status, close_model=model.close)
+        finally:
+            for t in loops:
+                t.close()
+
+    def on_ray(self, endpoints: list, shared: Shared | None) -> RunOutcome:
+        """The workers as Ray actors, on a local Ray started here or the cluster joined."""
+        started_ray = ensure_ray(self.runtime, self.say)  # no cluster at the address: fails before anything is written
+        import ray
+
+        from deepphy.actors.metrics_actor import make_metrics_actor
+        from deepphy.actors.model_worker import make_model_worker
+        from deepphy.actors.rate_limiter import ensure_limiter
+        from deepphy.scheduler import AgentWorkerModel, WorkerModel
+
+        config, runtime, store = self.config, self.runtime, self.store
+        actors: list[Any] = []
+        model_actors: list[Any] = []
+        try:
+            self.say("starting workers")
+            # Named "deepphy/<run id>/<role>": a dashboard or an operator can find a live run's
+            # metrics actor (ray.util.list_named_actors) and poll its snapshot.
+            prefix = f"deepphy/{uuid.uuid4().hex[:8]}"
+            status = RunStatus(run_id=prefix.split("/")[1], pid=os.getpid(), phase="starting", since=time.time(),
+                               ray_address=ray.get_runtime_context().gcs_address,
+                               ray_auth=os.environ.get("RAY_AUTH_MODE"))
+            write_status(store.path, status)
+            if self.view:  # where `deepphy watch` and `deepphy dashboard --address` find this run
+                self.view.line(f"deepphy: run {status.run_id} on Ray at {status.ray_address}; follow it with "
+                               f"`deepphy watch {store.path}`")
+            if shared is not None:
+                env_workers = shared.env_workers
+            else:
+                env_workers = make_env_workers(self.spec, config.env_options, runtime, f"{prefix}/env",
+                                               lambda i: store.log_path(f"env{i}"))
+            # The driver owns the endpoints' limiters, so a model worker's restart keeps their windows.
+            limiters = [limiter for e in endpoints if (limiter := ensure_limiter(e)) is not None]
+            if not endpoints and config.agent is None:  # a baseline answers in this process: no worker, no Ray call
+                model, model_actors = make_agent(config.model), []
+            else:
+                worker = shared.agent_workers.get(config.model) if shared is not None else None
+                model_actors = [] if worker is not None else [
+                    make_model_worker(config.model, self.spec, name=f"{prefix}/model", models_file=runtime.models_file,
+                                      max_concurrency=max(1000, runtime.max_in_flight), agent=config.agent)]
+                worker = worker or model_actors[0]
+                probe = (store.path / CONFIG).resolve()
+                try:
+                    seen = _started(worker.read_file.remote(str(probe)), "the model worker", runtime)
+                except ray.exceptions.RayActorError as e:
+                    if config.agent is None or not e.actor_init_failed:
+                        raise
+                    # its node's install differs from the driver's (another version, a missing dependency)
+                    said = _raised(e).removeprefix(f"{AgentError.__module__}.{AgentError.__name__}: ")
+                    raise AgentError(f"{said} (in the agent's model worker, which could not start)") from None
+                shares_files = seen == probe.read_bytes()
+                model = (AgentWorkerModel(worker, shares_files, config) if config.agent is not None
+                         else WorkerModel(worker, shares_files))
+            metrics = make_metrics_actor(self.total, self.k_max, self.spec.max_steps, name=f"{prefix}/metrics",
+                                         run=self._run_info(), started=self.began)
+            actors = [*(env_workers if shared is None else []), *model_actors, metrics,
+                      *(limiters if shared is None else [])]
+            return self._drive(env_workers, model, metrics, status, shared=shared)
+        finally:
+            # A model worker closes its connections itself, or its client complains as it dies.
             try:
-                ray.kill(actor)
-            except Exception:  # noqa: BLE001 - already gone
+                closing = [worker.close.remote() for worker in model_actors]
+                if closing:
+                    ray.wait(closing, num_returns=len(closing), timeout=10)
+            except Exception:  # noqa: BLE001 - a lost worker has nothing to close
                 pass
-        _stop_ray(started_ray)
+            for actor in actors:
+                try:
+                    ray.kill(actor)
+                except Exception:  # noqa: BLE001 - already gone
+                    pass
+            _stop_ray(started_ray)
+
+    def _run_info(self) -> dict[str, Any]:
+        """What the metrics actor tells dashboards about the run."""
+        return {"run_dir": str(self.store.path.resolve()), "config": self.config.model_dump(mode="json")}
+
+    def _drive(self, env_workers: list[Any], model: Any, metrics: Any, status: RunStatus,
+               shared: Shared | None = None, close_model: Callable[[], Any] | None = None) -> RunOutcome:
+        from deepphy.scheduler import Scheduler
+
+        # Not waited for here: the metrics actor's process starts while the workers start and the
+        # first attempts run (its calls queue in order until it is up); `_drive` checks it came up.
+        metrics_ready = metrics.add.remote(summaries_json([r.summary() for r in self.existing]), resumed=True)
+        scheduler = Scheduler(self.config, self.runtime, self.spec, self.tasks, self.store, env_workers, model,
+                              metrics, self.k_max)
+        if shared is not None:
+            shared.watch(metrics, scheduler)
+        if self.view:  # the progress line from here on
+            self.view.stop()
+
+        def without_figures(phase: str) -> str:  # the progress line while the metrics actor does not answer
+            return (f"{phase} · episodes {self.done + scheduler.episodes_finished}/{self.total} · attempts "
+                    f"{scheduler.recorded} · {_duration(time.time() - self.began)} (no figures yet: the "
+                    "metrics actor has not answered)")
+
+        async def drive() -> list[dict[str, int]]:
+            try:
+                await _drive(scheduler, self.existing, env_workers, metrics, metrics_ready, self.runtime, self.stream,
+                             self.store.path, status, without_figures)
+                return await _worker_stats(env_workers)
+            finally:
+                if close_model is not None:
+                    await close_model()
+
+        with frozen_heap():  # the heap of the start, Ray's included, is not scanned again (deepphy/collector.py)
+            worker_stats = asyncio.run(drive())
+        # What the directory held at the start and what this session wrote to it (the store
+        # raises on a write that fails): not the log read back, which took ~0.13 ms a record
+        # (0.3 s at the end of a 2,500-attempt run).
+        return RunOutcome(
+            out=Path(self.store.path),
+            episodes_total=self.total,
+            episodes_done=self.done + scheduler.episodes_finished,
+            new_records=scheduler.recorded,
+            unfinished=scheduler.failed,
+            errored=scheduler.errored,
+            worker_stats=worker_stats,
+        )
 
 
 def _raised(error: BaseException) -> str:
@@ -394,58 +459,11 @@ def _episodes_done(records, tasks: list[Task], runs: int, k_max: int) -> int:
     return sum(1 for e in F.episodes(records, k_max) if e.finished and e.run < runs and e.task in wanted)
 
 
-class StartView:
-    """What a run is doing before its progress line begins (Ray's start can take a minute on
-    a busy machine): a line at once, then the time it has taken, every second on a terminal
-    and every 10 s otherwise."""
-
-    def __init__(self, stream) -> None:
-        import threading
-
-        self.stream, self.tty = stream, stream.isatty()
-        self.phase, self.since = "", time.monotonic()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._tick, daemon=True)
-        self._thread.start()
-
-    def say(self, phase: str) -> None:
-        self.phase, self.since = phase, time.monotonic()
-        self._show()
-
-    def _show(self) -> None:
-        if not self.phase:
-            return
-        took = int(time.monotonic() - self.since)
-        line = f"{self.phase} ..." + (f" {took}s" if took else "")
-        try:
-            self.stream.write(f"\r\x1b[2K{line}" if self.tty else f"{line}\n")
-            self.stream.flush()
-        except (OSError, ValueError):  # a closed stream: progress is best effort
-            pass
-
-    def _tick(self) -> None:
-        while not self._stop.wait(1.0 if self.tty else 10.0):
-            self._show()
-
-    def stop(self) -> None:
-        self._stop.set()
-        self._thread.join()
-        if self.tty and self.phase:
-            self.stream.write("\r\x1b[2K")
-            self.stream.flush()
-
-
-def _worker_stats(env_workers: list[Any]) -> list[dict[str, int]]:
+async def _worker_stats(env_workers: list[Any]) -> list[dict[str, int]]:
     """Each live environment worker's counters (a worker lost with its node has none)."""
-    import ray
-
-    out = []
-    for worker in env_workers:
-        try:
-            out.append(ray.get(worker.stats.remote(), timeout=RAY_TIMEOUT_S))
-        except Exception:  # noqa: BLE001 - lost, or restarting
-            pass
-    return out
+    answers = await asyncio.gather(*(asyncio.wait_for(w.stats.remote(), RAY_TIMEOUT_S) for w in env_workers),
+                                   return_exceptions=True)
+    return [a for a in answers if isinstance(a, dict)]
 
 
 def _stop_ray(started: bool) -> None:
@@ -464,7 +482,7 @@ def _default_workers(resource: str | None) -> int:
 
 
 async def _drive(scheduler, existing, env_workers, metrics, metrics_ready, runtime: RuntimeOptions, stream,
-                 run_dir: Path, status: RunStatus) -> None:
+                 run_dir: Path, status: RunStatus, without_figures: Callable[[str], str]) -> None:
     """Start the workers, warm them up (compiling kernels on first use), then run the
     scheduler, with the progress view alongside. Each phase is told to the metrics actor
     (attempts/s and ETA count from "running") and written to the run directory.
@@ -473,9 +491,7 @@ async def _drive(scheduler, existing, env_workers, metrics, metrics_ready, runti
     local Ray has one ready per CPU, which the workers take); waiting for it delayed the first
     attempt by ~0.3 s on the 2-core machine, so nothing waits for it. Should it not start
     within the step timeout, the run stops (the attempts in flight are recorded first) with
-    one line, as for the workers."""
-    from ray.exceptions import RayActorError
-
+    one line, as for the workers. Until it answers, the progress line is `without_figures`."""
     phase = [status.phase]
     metrics_up = asyncio.ensure_future(_metrics_started(metrics_ready, scheduler, runtime))
 
@@ -484,7 +500,8 @@ async def _drive(scheduler, existing, env_workers, metrics, metrics_ready, runti
         metrics.update.remote({"phase": name})
         write_status(run_dir, status.model_copy(update={"phase": name, "since": time.time()}))
 
-    view = asyncio.ensure_future(_progress(scheduler, metrics, phase, stream)) if runtime.progress else None
+    view = (asyncio.ensure_future(_progress(scheduler, metrics, phase, stream, without_figures))
+            if runtime.progress else None)
     try:
         try:
             await asyncio.wait_for(asyncio.gather(*(w.stats.remote() for w in env_workers)),
@@ -496,7 +513,7 @@ async def _drive(scheduler, existing, env_workers, metrics, metrics_ready, runti
             raise ClusterUnavailable(f"the environment workers did not start within {runtime.step_timeout_s:g} s "
                                      "(an overloaded machine, or no room on the cluster for them); run the same "
                                      "command again to resume") from None
-        except RayActorError as e:
+        except ray_errors("RayActorError") as e:
             if e.actor_init_failed:  # the environment cannot be built in a worker: not the cluster's doing
                 raise
             raise ClusterUnavailable(f"the environment workers died while starting ({_why_died(e)}); run the same "
@@ -514,7 +531,7 @@ async def _drive(scheduler, existing, env_workers, metrics, metrics_ready, runti
                 await view
             except asyncio.CancelledError:
                 pass
-            await _print_snapshot(scheduler, metrics, phase[0], stream, final=True)
+            await _print_snapshot(scheduler, metrics, phase[0], stream, without_figures, final=True)
 
 
 def _why_died(error: BaseException) -> str:
@@ -548,37 +565,44 @@ async def _metrics_started(ready, scheduler, runtime: RuntimeOptions) -> None:
         scheduler.stop_requested = True
 
 
-async def _progress(scheduler, metrics, phase: list[str], stream) -> None:
-    tty = stream.isatty()
-    last_line = 0.0
+PROGRESS_TTY_S, PROGRESS_LOG_S = 0.5, 10.0  # the progress line: on a terminal, in a log
+SNAPSHOT_WAIT_S = 2.0  # for the figures of a progress line; past it, the line goes without them
+
+
+async def _progress(scheduler, metrics, phase: list[str], stream, without_figures: Callable[[str], str]) -> None:
+    """The progress line: at once, then every PROGRESS_TTY_S on a terminal (in place) and
+    every PROGRESS_LOG_S in a log, never waiting long for the figures."""
+    every = PROGRESS_TTY_S if stream.isatty() else PROGRESS_LOG_S
     while True:
-        await asyncio.sleep(0.5 if tty else 1.0)
-        if tty or time.time() - last_line >= 10:
-            await _print_snapshot(scheduler, metrics, phase[0], stream, final=False)
-            last_line = time.time()
+        shown = time.monotonic()
+        await _print_snapshot(scheduler, metrics, phase[0], stream, without_figures, final=False)
+        await asyncio.sleep(max(0.0, shown + every - time.monotonic()))
 
 
-async def _print_snapshot(scheduler, metrics, phase: str, stream, final: bool) -> None:
+async def _print_snapshot(scheduler, metrics, phase: str, stream, without_figures: Callable[[str], str],
+                          final: bool) -> None:
     # Deadlines by `asyncio.timeout`, not `asyncio.wait_for`: Python 3.11's `wait_for` returns
     # the result of a call that completes in the same turn of the loop as a cancellation and
     # drops the cancellation (fixed in 3.12), so `_drive` stopping the view could wait for it
     # forever while it went on printing.
+    wait_s = 10.0 if final else SNAPSHOT_WAIT_S
+    line = without_figures(phase)
     try:
         # The driver's own counters go to the metrics actor, so `deepphy watch` sees them too.
         scheduler.send_summaries()
-        try:  # requests waiting for the rate limit or before a retry: a run that seems stuck says why
-            async with asyncio.timeout(5):
+        try:  # what the model's requests are waiting for: a run that seems stuck says why
+            async with asyncio.timeout(wait_s / 2):
                 waiting = await scheduler.model.activity()
         except Exception:  # noqa: BLE001 - a restarting model worker: no figures this time
             waiting = {}
         metrics.update.remote({**scheduler.activity(), **waiting, "phase": phase})  # also while warming up
-        async with asyncio.timeout(10):
+        async with asyncio.timeout(wait_s / 2):
             snap = await metrics.snapshot.remote()
-    except Exception:  # noqa: BLE001 - progress is best effort
-        return
-    line = format_progress(snap)
-    if stream.isatty():
-        stream.write("\r\x1b[2K" + line + ("\n" if final else ""))
-    else:
-        stream.write(line + "\n")
-    stream.flush()
+        line = format_progress(snap)
+    except Exception:  # noqa: BLE001 - the metrics actor is starting (or lost): the line without its figures
+        pass
+    try:
+        stream.write(("\r\x1b[2K" + line + ("\n" if final else "")) if stream.isatty() else line + "\n")
+        stream.flush()
+    except (OSError, ValueError):  # a closed stream: progress is best effort
+        pass

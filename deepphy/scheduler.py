@@ -14,30 +14,31 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+import sys
 import time
 import traceback
 from collections import defaultdict
 from contextlib import contextmanager
 from typing import Any, Iterator, Sequence
 
-import ray
-from ray.exceptions import ActorDiedError, ActorUnavailableError, RayActorError
-
 from deepphy.actors.env_worker import LostEpisode
 from deepphy.agent import AgentFailed, Episode
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import Action, EnvSpec, Observation, StepResult, Task
 from deepphy.envs.base import ObservationCache
-from deepphy.models import AccessDenied, ModelError, ModelRequest, ModelResponse
+from deepphy.models import AccessDenied, ModelError, ModelRequest, ModelResponse, RequestRejected
 from deepphy.protocol import ModelHandle, run_attempt
 from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished, summaries_json
 from deepphy.runs.store import RunStore, RunWriteError
 
 log = logging.getLogger(__name__)
 
-WORKER_LOST = (LostEpisode, ActorDiedError, ActorUnavailableError, RayActorError)
 # Failures no retry can mend, that end the whole run at once (raised by `Scheduler.run`).
-FATAL = (RunWriteError, AccessDenied, AgentFailed)
+FATAL = (RunWriteError, AccessDenied, RequestRejected, AgentFailed)
+# Re-runs of an attempt whose model request failed for good (after the client's own retries,
+# within its deadline: deepphy.models.config.Timeouts): a dead endpoint holds an episode for
+# 3 requests' deadlines, minutes, and the progress line says what they are waiting for.
+MODEL_REQUEUES = 2
 # Calls on their way per environment worker: the worker runs one call while the next waits
 # in its queue, so it never idles for a round trip. A call carries as many of the decisions
 # waiting for that worker as take it about `CALL_S` at the pace of its last call, at most
@@ -49,6 +50,28 @@ FATAL = (RunWriteError, AccessDenied, AgentFailed)
 CALLS_IN_FLIGHT = 2
 CALL_S = 0.25  # Ray's ~2 ms a call is then ~1 % of it; results still come back four times a second
 BATCH_MAX = 32  # 32 PHYRE decisions are ~0.16 s of work; larger calls were not measured
+
+
+def ray_errors(*names: str) -> tuple[type[BaseException], ...]:
+    """Ray's exception classes of these names once Ray is loaded; none before (a run in
+    this process never loads Ray, and no Ray error can reach it)."""
+    errors = sys.modules.get("ray.exceptions")
+    return tuple(getattr(errors, name) for name in names) if errors is not None else ()
+
+
+def worker_lost() -> tuple[type[BaseException], ...]:
+    """What an environment worker's death looks like to its caller."""
+    return (LostEpisode, *ray_errors("ActorDiedError", "ActorUnavailableError", "RayActorError"))
+
+
+def cancel(ref: Any) -> None:
+    """Cancel a call that did not answer in time: a Ray task, or an in-process one."""
+    if isinstance(ref, asyncio.Future):
+        ref.cancel()
+    else:
+        import ray
+
+        ray.cancel(ref, force=False)
 
 
 class WorkerLost(RuntimeError):
@@ -106,10 +129,10 @@ class StepBatcher:
         try:
             outcomes = await asyncio.wait_for(ref, timeout=self.timeout_s)
             self._paced(sent, len(batch))
-        except WORKER_LOST as e:
+        except worker_lost() as e:
             outcomes = [WorkerLost(type(e).__name__) for _ in batch]
         except asyncio.TimeoutError:
-            ray.cancel(ref, force=False)
+            cancel(ref)
             outcomes = [WorkerLost(f"no answer within {self.timeout_s:g} s") for _ in batch]
         except Exception as e:  # noqa: BLE001 - the call as a whole failed: each of its attempts says so
             outcomes = [e for _ in batch]
@@ -182,10 +205,10 @@ class WorkerEnv:
             ref = self.worker.reset.remote(self.episode, task)
             try:
                 obs = await asyncio.wait_for(ref, timeout=self.batcher.timeout_s)
-            except WORKER_LOST as e:
+            except worker_lost() as e:
                 raise WorkerLost(type(e).__name__) from e
             except asyncio.TimeoutError:
-                ray.cancel(ref, force=False)
+                cancel(ref)
                 raise WorkerLost(f"no answer within {self.batcher.timeout_s:g} s") from None
             return self.initial.cache.put(task.id, obs)
 
@@ -241,6 +264,27 @@ class AgentWorkerModel(WorkerModel):
             pass
 
 
+class LocalAgentModel:
+    """A user's agent in this process (`deepphy run --in-process`): its client, told when an
+    episode ends to release the episode's state, as a model worker is."""
+
+    def __init__(self, client: Any, config: RunConfig) -> None:
+        self.client, self.config = client, config
+
+    async def complete(self, request: ModelRequest) -> ModelResponse:
+        return await self.client.complete(request)
+
+    def end_episode(self, task: str, run: int) -> None:
+        c = self.config
+        self.client.end_episode(Episode(c.env, json.dumps(c.env_options, sort_keys=True), c.format.value, task, run))
+
+    async def activity(self) -> dict[str, int]:
+        return await self.client.activity()
+
+    async def close(self) -> None:
+        await self.client.close()
+
+
 class Scheduler:
     def __init__(
         self,
@@ -253,7 +297,7 @@ class Scheduler:
         model: ModelHandle,
         metrics: Any,  # the metrics actor; None: no live figures (`deepphy play`)
         k_max: int,
-        max_model_requeues: int = 5,
+        max_model_requeues: int = MODEL_REQUEUES,
         local_env: Any = None,  # a protocol.EnvHandle
     ) -> None:
         self.config = config
@@ -423,13 +467,14 @@ class Scheduler:
             else:  # a deadline on this task, not `wait_for`'s task per request
                 async with asyncio.timeout(self.runtime.model_timeout_s):
                     response = await self.model.complete(request)
-        except AccessDenied as e:  # the key is refused: no attempt can succeed
-            raise AccessDenied(str(getattr(e, "cause", e)), kind="denied") from None
+        except (AccessDenied, RequestRejected) as e:  # the key or the request refused: no attempt can succeed
+            cause = getattr(e, "cause", e)  # from a model worker: the error itself, not Ray's wrapping
+            raise type(cause)(str(cause), kind=cause.kind) from None
         except AgentFailed as e:  # an agent that could not set up: neither can its other requests
             raise AgentFailed(str(getattr(e, "cause", e))) from None
         except ModelError as e:  # from a model worker: the error's own words, not Ray's wrapping
             raise ModelUnavailable(str(getattr(e, "cause", e)), retries=getattr(e, "retries", 0)) from e
-        except (asyncio.TimeoutError, RayActorError) as e:
+        except (asyncio.TimeoutError, *ray_errors("RayActorError")) as e:
             raise ModelUnavailable(f"model worker: {type(e).__name__}") from e
         self.decisions += 1
         self._charge(response.usage.cost_usd)

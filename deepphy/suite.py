@@ -236,10 +236,11 @@ class CellOutcome:
 
 
 def run_suite(suite: Suite, root: str | Path, runtime: RuntimeOptions, models: list[str] | None = None,
-              stream=sys.stderr, cell_lines: bool = False) -> list[CellOutcome]:
+              stream=sys.stderr, cell_lines: bool = False, view=None) -> list[CellOutcome]:
     """Run (or resume) every cell of `suite` into `root`, interleaved in one Ray runtime
     (started here unless this process is connected already), with one progress view
-    (`cell_lines`: a line per running cell too)."""
+    (`cell_lines`: a line per running cell too). `view`: the command's start view, which
+    says the Ray start and ends where the suite's own view begins."""
     from deepphy.runner import ensure_ray, episodes_done
 
     root = Path(root)
@@ -251,12 +252,18 @@ def run_suite(suite: Suite, root: str | Path, runtime: RuntimeOptions, models: l
     except OSError as e:
         raise SuiteError(f"cannot write {root / MANIFEST}: {e.strerror or e}") from None
     if added:
-        print(f"suite {suite.name}: extended by {added} cell(s)", file=stream, flush=True)
+        said = f"suite {suite.name}: extended by {added} cell(s)"
+        if view:
+            view.line(said)
+        else:
+            print(said, file=stream, flush=True)
     progress = {c.dir: episodes_done(c.config, root / c.dir) for c in wanted}
     left = [c for c in wanted if progress[c.dir][0] < progress[c.dir][1]]
     finished = {c.dir: CellOutcome(c, *progress[c.dir], 0) for c in wanted if c not in left}
     if left:
-        started = ensure_ray(runtime, lambda line: print(f"{line} ...", file=stream, flush=True))
+        started = ensure_ray(runtime, view.say if view else lambda line: print(f"{line} ...", file=stream, flush=True))
+        if view:
+            view.stop()
         try:
             finished.update(Interleaved(suite.name, root, runtime, wanted, left, progress, stream, cell_lines).run())
         finally:

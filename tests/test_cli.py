@@ -229,3 +229,78 @@ def test_report_and_plot_flag_runs_of_different_task_sets(tmp_path, capsys):
     for argv in (["report", "--csv", str(a), str(b)], ["plot", str(a), str(b), "--out", str(tmp_path / "figs")]):
         assert main(argv) == 0
         assert capsys.readouterr().err.startswith("deepphy: warning: these runs evaluate different task sets")
+
+
+HEAVY = ("ray", "numpy", "pydantic", "jax", "iphyre", "pymunk", "Box2D", "pooltool", "kinetix", "pygame", "aiohttp",
+         "yaml", "importlib.metadata", "typing", "subprocess")
+
+
+@pytest.mark.parametrize("argv", [["--version"], ["--help"], ["run", "--help"], ["run", "--bogus-flag"],
+                                  ["run", "--format", "xml"], ["nosuch"]])
+def test_the_quick_answers_import_nothing_heavy(argv):
+    """`--version`, `--help` and a bad flag answer within Python's own start: no Ray, no
+    simulator, not even numpy or pydantic (`--version` took 8.6 s on a loaded machine)."""
+    code = ("import sys; from deepphy.cli import main\n"
+            "try: status = main(sys.argv[1:])\nexcept SystemExit as e: status = e.code\n"
+            f"print(sorted(m for m in sys.modules if m in {HEAVY!r} or m.split('.')[0] in {HEAVY!r}), file=sys.stderr)\n"
+            "sys.exit(status)")
+    done = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=60)
+    *said, loaded = done.stderr.splitlines()
+    assert loaded == "[]", loaded
+    if argv[-1] in ("--version", "--help"):
+        assert done.returncode == 0 and done.stdout.startswith(("deepphy ", "usage: deepphy"))
+    else:
+        assert done.returncode == 2 and len(said) == 1 and said[0].startswith("deepphy: error: "), said
+
+
+def test_a_run_says_what_it_does_before_its_first_heavy_import(tmp_path):
+    """On a terminal the run's first line comes before it imports anything heavy (Python's
+    own import log, on the same terminal, tells the order); then the one error line."""
+    import pty
+
+    master, terminal = pty.openpty()
+    proc = subprocess.Popen([sys.executable, "-X", "importtime", "-m", "deepphy.cli", "run", "--tasks", "nosuch",
+                             "--out", str(tmp_path / "run")], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=terminal)
+    os.close(terminal)
+    chunks = []
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:  # the terminal's other end closed (Linux: EIO)
+            break
+        if not chunk:
+            break
+        chunks.append(chunk)
+    os.close(master)
+    assert proc.wait(timeout=60) == 2
+    said = b"".join(chunks).decode(errors="replace")
+    first_line = said.find("checking the run ...")
+    heavy = re.search(r"\| +(numpy|pydantic|iphyre)\r?$", said, re.MULTILINE)  # the first of them imported
+    assert first_line >= 0 and heavy and first_line < heavy.start(), said[:3000]
+    assert "deepphy: error: unknown iphyre task(s) nosuch" in said[first_line:]
+
+
+def test_the_start_view_repeats_while_the_run_holds_the_gil():
+    """Ray's start spends seconds in C code holding Python's GIL (28 s of silence were seen):
+    the view's repeats come from a process of their own, so they go on meanwhile."""
+    import ctypes
+
+    from deepphy.start_view import StartView
+
+    read, write = os.pipe()
+    stream = os.fdopen(write, "w")
+    view = StartView(stream, interval=0.2)
+    try:
+        view.say("starting Ray (local, 2 CPUs)")
+        view.repeat()
+        ctypes.PyDLL(None).usleep(3_000_000)  # 3 s in C with the GIL held: no thread of this process runs
+        os.set_blocking(read, False)
+        during = os.read(read, 65536).decode().splitlines()
+    finally:
+        view.stop()
+        stream.close()
+        os.close(read)
+    assert during[0] == "starting Ray (local, 2 CPUs) ..."
+    repeats = [line for line in during[1:] if line.startswith("starting Ray (local, 2 CPUs) ... ")]
+    assert len(repeats) >= 3 and repeats[-1].endswith(("2s", "3s")), during

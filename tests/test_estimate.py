@@ -70,10 +70,12 @@ def test_cli_prices_a_models_file_endpoint_that_is_not_listening(tmp_path, capsy
     assert main([*argv, "--model", "priced"]) == 0
     text = capsys.readouterr().out
     row = next(line for line in text.splitlines() if line.startswith("iphyre priced vla"))
-    # 2 episodes x 10 attempts x 1 decision; 20 requests at 60/min; expected: MOCK's requests on these tasks
+    # 2 episodes x 10 attempts x 1 decision; 20 requests paced at 60/min (61 s windows): 19 s at
+    # least; expected: MOCK's requests on these tasks, at 10 s a reply, two at once (2 episodes)
     expected = re.search(r"\b2\s+20\s+2\.\.20\s+(\d+)\s", row)
     assert expected and 2 <= int(expected[1]) <= 20
-    assert row.rstrip().endswith(f"{int(expected[1]) / 60:.1f} min  0.3 min")
+    n = int(expected[1])
+    assert row.rstrip().endswith(f"{max((n - 1) * 61 / 60, n * 10 / 2) / 60:.1f} min  {19 * 61 / 60 / 60:.1f} min")
     est = estimate(RunConfig(env="iphyre", model="priced", runs=1, tasks=["support", "hinder"]), str(models))
     assert f"${est.cost_input_max:,.2f}" in row and f"${est.cost_output_max:,.2f}" in row
     assert est.cost_output_max == pytest.approx(20 * 1024 * 15 / 1e6)
@@ -93,7 +95,7 @@ def test_a_suites_expected_time_is_its_slowest_endpoints_sum():
     from deepphy.estimate import render, suite_time
 
     base = estimate(RunConfig(env="iphyre", model="mock", runs=1, tasks=["support"]))
-    cells = [replace(base, label=f"c{i}", endpoint=e, requests_per_min=rpm, requests_expected=n, requests_max=m,
+    cells = [replace(base, label=f"c{i}", endpoint=e, requests_expected=n, requests_max=m, expected_min=n / rpm,
                      rate_limit_min=m / rpm)
              for i, (e, rpm, n, m) in enumerate([("a", 60, 300, 600), ("a", 60, 300, 600), ("b", 120, 900, 1200)])]
     # a: 600 expected at 60/min = 10 min (bound 20); b: 900 at 120/min = 7.5 min (bound 10)
@@ -101,3 +103,74 @@ def test_a_suites_expected_time_is_its_slowest_endpoints_sum():
     total = next(line for line in render(cells).splitlines() if line.startswith("total"))
     assert total.endswith("10 min  20 min")
     assert suite_time([base]) == ["-", "-"]  # a baseline has no limit
+
+
+def _limiter_pace(limits, requests: int, input_tokens: int, max_tokens: int, reply_s: float, output_tokens: int,
+                  in_flight: int) -> float:
+    """Virtual seconds the real limiter (AsyncRateLimiter, as a run's model client uses it)
+    takes until the last of `requests` requests is answered: `in_flight` callers, each
+    asking for input + max_tokens, holding the grant `reply_s`, then releasing it with
+    input + output tokens used. On a virtual clock (tests/virtual_time.py)."""
+    import asyncio
+
+    from deepphy.models.limiter import AsyncRateLimiter
+    from virtual_time import virtual_time
+
+    with virtual_time() as loop:
+        limiter = AsyncRateLimiter(limits, clock=loop.time)
+        left = [requests]
+
+        async def caller() -> None:
+            while left[0] > 0:
+                left[0] -= 1
+                grant = await limiter.acquire(input_tokens + max_tokens, lease_s=3600)
+                await asyncio.sleep(reply_s)
+                await limiter.release(grant, input_tokens + output_tokens)
+
+        async def run() -> float:
+            started = loop.time()
+            await asyncio.gather(*(caller() for _ in range(in_flight)))
+            return loop.time() - started
+
+        return loop.run_until_complete(run())
+
+
+# (limits, requests, input tokens per request, max_tokens, reply s, output tokens, episodes in flight)
+PACES = {
+    "requests/min": ({"requests_per_min": 600}, 1500, 2000, 1024, 0.0, 0, 256),
+    "tokens/min": ({"tokens_per_min": 200_000}, 1000, 5000, 1024, 0.0, 0, 256),
+    "tokens/min, reservation held while answered": ({"tokens_per_min": 450_000}, 2000, 4000, 1024, 10.0, 1024, 256),
+    "max_tokens reservation near the limit": ({"tokens_per_min": 30_000}, 200, 4000, 16_000, 0.0, 0, 64),
+    "max_concurrent": ({"max_concurrent": 8}, 400, 3000, 1024, 10.0, 200, 256),
+    "the run's episodes in flight": ({"requests_per_min": 10_000}, 300, 3000, 1024, 10.0, 200, 6),
+    "all at once (gpt-4o's shipped limits)": ({"requests_per_min": 500, "tokens_per_min": 450_000,
+                                               "max_concurrent": 64}, 1000, 8000, 1024, 10.0, 1024, 256),
+}
+
+
+@pytest.mark.parametrize("case", PACES)
+def test_the_estimated_time_is_the_limiters_own_pace(case):
+    """The dry-run's time under each limit the limiter enforces, and all of them together,
+    against the limiter itself granting the same requests (it once used requests/min alone:
+    the paper suite's 252M input tokens for gpt-4o were "2.5-3.1 h", 9 h at its 450k TPM)."""
+    from deepphy.estimate import limit_seconds
+    from deepphy.models.config import RateLimits
+
+    limits, n, tokens_in, max_tokens, reply_s, out, in_flight = PACES[case]
+    limits = RateLimits(**limits)
+    estimated = limit_seconds(limits, n, n * tokens_in, max_tokens, reply_s, out, in_flight)
+    simulated = _limiter_pace(limits, n, tokens_in, max_tokens, reply_s, out, in_flight)
+    assert estimated == pytest.approx(simulated, rel=0.05, abs=reply_s + 1), (estimated, simulated)
+
+
+def test_the_dry_run_honours_tokens_per_minute(tmp_path):
+    """An endpoint whose tokens/min binds before its requests/min: the least time is the
+    run's input tokens over the limit, not its requests over requests/min."""
+    models = tmp_path / "models.yaml"
+    models.write_text(json.dumps({"models": [
+        {"name": "tight", "provider": "openai", "model": "x", "base_url": "http://127.0.0.1:9/v1",
+         "rate_limits": {"requests_per_min": 600, "tokens_per_min": 20_000}}]}))
+    est = estimate(RunConfig(env="iphyre", model="tight", runs=1, tasks=["support", "hinder"]), str(models))
+    by_tokens = est.input_tokens_max / 20_000  # minutes, had every token gone through at the limit
+    assert est.rate_limit_min >= 0.9 * by_tokens > 2 * est.requests_max / 600
+    assert est.expected_min is not None and est.expected_min > 0

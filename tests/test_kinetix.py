@@ -326,3 +326,39 @@ def test_every_level_renders_with_exact_non_overlapping_labels():
             for _, b in boxes[i + 1 :]:
                 assert not (a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]), t.id
         assert render.goal_distance_px(state) is not None, t.id
+
+
+# What logs when it loads a program from JAX's persistent compilation cache (jaxlib 0.9).
+XLA_CACHE_NOISE = "cpu_aot_loader.cc"
+GYM_KINETIX = """
+import gymnasium, sys
+import deepphy.gym
+env = gymnasium.make("deepphy/kinetix-v0", task="s_h0_weak_thrust")
+env.reset(seed=0)
+env.step(env.action_space.sample())
+print("stepped", flush=True)
+if sys.argv[1:] == ["then-fail"]:  # our own error must still reach the terminal
+    env.reset(options={"task": "no_such_level"})
+"""
+
+
+@pytest.mark.slow
+def test_kinetix_outside_a_run_prints_none_of_xlas_cache_log(tmp_path):
+    """Through Gymnasium and `--dry-run` (a run sends it to logs/), a Kinetix simulation
+    loaded from the compilation cache printed an XLA error line per program: 128 lines for
+    a `gymnasium.make`. The first command fills the cache (a cold one compiles, quietly)."""
+    env = {**os.environ, "DEEPPHY_CACHE_DIR": str(CACHE)}
+    env.pop("TF_CPP_MIN_LOG_LEVEL", None)
+    warm = subprocess.run([sys.executable, "-c", GYM_KINETIX], capture_output=True, text=True, timeout=900, env=env)
+    assert warm.returncode == 0 and "stepped" in warm.stdout, warm.stderr[-2000:]
+    done = subprocess.run([sys.executable, "-c", GYM_KINETIX, "then-fail"], capture_output=True, text=True,
+                          timeout=900, env=env)
+    assert "stepped" in done.stdout and XLA_CACHE_NOISE not in done.stderr, done.stderr[:2000]
+    assert done.returncode == 1 and "no_such_level" in done.stderr.splitlines()[-1]  # our error, as Python raised it
+    dry = subprocess.run([sys.executable, "-m", "deepphy.cli", "run", "--env", "kinetix", "--limit", "1", "--runs",
+                          "1", "--dry-run", "--out", str(tmp_path / "run")], capture_output=True, text=True,
+                         timeout=900, env=env)
+    assert dry.returncode == 0 and dry.stdout.startswith("run "), dry.stderr[-2000:]
+    # only what the command says itself while it measures (a line every 10 s in a log)
+    assert all(line.startswith(("checking the run ...", "measuring the prompts")) for line in dry.stderr.splitlines()), \
+        dry.stderr[:2000]

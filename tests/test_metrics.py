@@ -203,8 +203,14 @@ def test_progress_line_says_what_is_happening():
     assert "ETA 5m09s" in line and line.endswith("1m15s")
     assert "% of finished" not in line
     assert "waiting" not in line
-    live.update(rate_limited=12, retrying=3)  # what a run that seems stuck is doing
-    assert "· waiting 12 for the rate limit, 3 to retry ·" in format_progress(live.snapshot())
+    # What a run that seems stuck is doing, named by its model (the metrics actor's run info):
+    live.update(rate_limited=3, retrying=12, retry_wait_s=29.7, retry_reason="429", answering_slow=1, answer_wait_s=95)
+    snap = {**live.snapshot(), "config": {"model": "gpt-4o"}}
+    assert ("· gpt-4o: 12 requests waiting 30 s to retry (429), 3 for the rate limit, 1 for an answer for 95 s ·"
+            in format_progress(snap))
+    live.update(rate_limited=0, retrying=0, answering_slow=1, answer_wait_s=200)
+    assert "· gpt-4o: 1 request waiting for an answer for 3m20s ·" in format_progress({**live.snapshot(),
+                                                                                      "config": {"model": "gpt-4o"}})
 
 
 def test_eta_counts_the_work_of_episodes_in_flight():

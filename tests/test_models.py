@@ -11,7 +11,7 @@ import jsonschema
 import pytest
 
 from deepphy.models import (
-    AccessDenied, ModelConfig, ModelError, UnknownModel, client_from_config, load_models, model_config,
+    AccessDenied, ModelConfig, ModelError, RequestRejected, UnknownModel, client_from_config, load_models, model_config,
 )
 from deepphy.models.config import MissingKey, ModelsFile
 from deepphy.agents import MockModel, make_agent
@@ -228,9 +228,9 @@ def test_openai_reasoning_model_options(server):
 
 def test_no_context_is_sent_unless_configured(server):
     cfg = local_config(server.url, "openai", send_context=False, retry={"max_retries": 0})
-    with pytest.raises(ModelError) as e:
+    with pytest.raises(RequestRejected) as e:  # the server's 400: the same request would get it again
         run(complete_once(cfg, iphyre_request(0)))
-    assert e.value.kind == "http_400" and e.value.retries == 0
+    assert e.value.kind == "rejected" and e.value.retries == 0
     assert "X-Deepphy-Context" not in server.bodies()[-1]["headers"]
 
 
@@ -367,7 +367,10 @@ def test_waiting_requests_are_counted(server):
 
     seen, after = run(go())
     assert max(a["rate_limited"] for a in seen) >= 1 and max(a["retrying"] for a in seen) >= 1
-    assert after == {"rate_limited": 0, "retrying": 0}
+    # a retry says why and for how long: the 429's Retry-After (1 s, plus up to 10 % jitter)
+    retrying = [a for a in seen if a["retrying"]]
+    assert {a["retry_reason"] for a in retrying} == {"429"} and 0 < max(a["retry_wait_s"] for a in retrying) <= 1.1
+    assert after["rate_limited"] == after["retrying"] == after["answering_slow"] == 0
 
 
 def test_connection_refused_is_retried_then_model_error():

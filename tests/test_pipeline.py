@@ -1,6 +1,7 @@
 """The full pipeline on a real local Ray runtime and the real I-PHYRE."""
 
 import asyncio
+import io
 import os
 import signal
 import threading
@@ -167,15 +168,20 @@ def test_attempts_do_not_wait_for_the_metrics_actor_but_it_must_start(baseline, 
     import deepphy.actors.metrics_actor as metrics_actor
     from deepphy.runner import ClusterUnavailable
 
-    def never_placed(total, k_max, max_steps=1, *, name=None, run=None):
+    def never_placed(total, k_max, max_steps=1, *, name=None, run=None, started=None):
         return metrics_actor.MetricsActor.options(num_cpus=0, name=name, resources={"nowhere": 1}).remote(
-            total, k_max, max_steps, run)
+            total, k_max, max_steps, run, started)
 
     monkeypatch.setattr(metrics_actor, "make_metrics_actor", never_placed)
     # 15 s: the step timeout bounds the workers' start too, which a loaded machine makes slow
+    stream = io.StringIO()
     with pytest.raises(ClusterUnavailable, match="the metrics actor did not start within 15 s"):
-        evaluate(CONFIG, tmp_path, RUNTIME.model_copy(update={"step_timeout_s": 15.0}))
+        evaluate(CONFIG, tmp_path, RUNTIME.model_copy(update={"step_timeout_s": 15.0, "progress": True}),
+                 stream=stream)
     assert read_records(tmp_path), "no attempt ran while the metrics actor was starting"
+    # the progress line went on meanwhile (every 10 s in a log), without the actor's figures
+    waiting = [line for line in stream.getvalue().splitlines() if "(no figures yet: the metrics actor" in line]
+    assert len(waiting) >= 2 and waiting[0].startswith("starting · episodes 0/"), stream.getvalue()
     monkeypatch.undo()
     assert evaluate(CONFIG, tmp_path, RUNTIME).complete
     assert_complete(tmp_path, CONFIG)

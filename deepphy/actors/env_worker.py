@@ -21,8 +21,7 @@ import pickle
 import traceback
 from typing import Any, Sequence
 
-import ray
-
+from deepphy.actors import remote_class
 from deepphy.allocator import keep_freed_memory
 from deepphy.envs import Action, EnvSpec, Environment, Observation, StepResult, Task
 
@@ -159,5 +158,6 @@ def make_env_worker(spec: EnvSpec, options: dict[str, Any], *, name: str | None 
 
 
 # One actor class per process, options per run: a class made per run is exported to the
-# cluster and remembered by this driver each time (memory that grew with every run).
-EnvWorker = ray.remote(EnvWorkerImpl)
+# cluster and remembered by this driver each time (memory that grew with every run). Made
+# when first used: a run in this process (`deepphy run --in-process`) never imports Ray.
+EnvWorker = remote_class(EnvWorkerImpl)

@@ -5,17 +5,15 @@ from __future__ import annotations
 
 from typing import Any
 
-import ray
-
-from deepphy.actors.placement import beside_driver
+from deepphy.actors import remote_class
 from deepphy.metrics.live import LiveMetrics
 from deepphy.runs.records import summaries_from_json
 
 
 class MetricsImpl:
     def __init__(self, episodes_total: int, max_attempts: int, max_steps: int = 1,
-                 run: dict[str, Any] | None = None) -> None:
-        self.live = LiveMetrics(episodes_total, max_attempts, max_steps)
+                 run: dict[str, Any] | None = None, started: float | None = None) -> None:
+        self.live = LiveMetrics(episodes_total, max_attempts, max_steps, started=started)  # started: the command's
         self.run = run or {}  # where the run writes and what it evaluates: dashboards find it here
 
     def add(self, summaries: bytes, resumed: bool = False) -> None:
@@ -30,9 +28,11 @@ class MetricsImpl:
 
 
 def make_metrics_actor(episodes_total: int, max_attempts: int, max_steps: int = 1, *, name: str | None = None,
-                       run: dict[str, Any] | None = None):
+                       run: dict[str, Any] | None = None, started: float | None = None):
+    from deepphy.actors.placement import beside_driver
+
     return MetricsActor.options(num_cpus=0, name=name, scheduling_strategy=beside_driver()).remote(
-        episodes_total, max_attempts, max_steps, run)
+        episodes_total, max_attempts, max_steps, run, started)
 
 
-MetricsActor = ray.remote(MetricsImpl)  # one class per process (see env_worker.EnvWorker)
+MetricsActor = remote_class(MetricsImpl)  # one class per process (see env_worker.EnvWorker)

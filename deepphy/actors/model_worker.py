@@ -5,9 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
-import ray
-
-from deepphy.actors.placement import beside_driver
+from deepphy.actors import remote_class
 from deepphy.config import AgentSpec
 from deepphy.envs import EnvSpec, register
 from deepphy.models import ModelRequest, ModelResponse
@@ -66,6 +64,8 @@ def make_model_worker(model: str, spec: EnvSpec | Sequence[EnvSpec], *, name: st
     """`max_concurrency`: requests handled at once (a run passes its episodes in flight).
     An agent that declares Ray resources (a GPU) gets them, wherever the cluster has them;
     any other worker is an I/O actor beside the driver that reserves nothing."""
+    from deepphy.actors.placement import beside_driver
+
     options = {"num_cpus": 0, "scheduling_strategy": beside_driver()}
     if agent is not None:
         from deepphy.agent import declared
@@ -80,4 +80,4 @@ def make_model_worker(model: str, spec: EnvSpec | Sequence[EnvSpec], *, name: st
     ).remote(model, spec, models_file, agent)
 
 
-ModelWorker = ray.remote(ModelWorkerImpl)  # one class per process (see env_worker.EnvWorker)
+ModelWorker = remote_class(ModelWorkerImpl)  # one class per process (see env_worker.EnvWorker)

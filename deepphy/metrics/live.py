@@ -14,12 +14,12 @@ from deepphy.runs.records import AttemptSummary
 
 class LiveMetrics:
     def __init__(self, episodes_total: int, max_attempts: int, max_steps: int = 1,
-                 clock: Callable[[], float] = time.time) -> None:
+                 clock: Callable[[], float] = time.time, started: float | None = None) -> None:
         self.episodes_total = episodes_total
         self.max_attempts = max_attempts
         self.max_steps = max_steps  # decisions per attempt: an episode is at most K x this many
         self.clock = clock
-        self.started = clock()
+        self.started = clock() if started is None else started  # the elapsed time counts from here
         self.running_since: float | None = None  # when the "running" phase began: rates count from here
         # Snapshots are polled twice a second: keep each episode's figures up to date as its
         # attempts arrive instead of re-deriving every episode per poll.
@@ -97,10 +97,9 @@ def format_progress(s: dict[str, Any]) -> str:
         parts.append(f"invalid {s['invalid_attempts']}")
     if s["model_errors"] or s["retries"]:
         parts.append(f"model errors {s['model_errors']} · retries {s['retries']}")
-    waiting = [f"{n} {what}" for what, n in (("for the rate limit", s.get("rate_limited", 0)),
-                                             ("to retry", s.get("retrying", 0))) if n]
+    waiting = endpoint_waits(s)
     if waiting:
-        parts.append("waiting " + ", ".join(waiting))
+        parts.append(waiting)
     if s.get("errored"):
         parts.append(f"errored {s['errored']}")
     if s["input_tokens"]:
@@ -109,6 +108,30 @@ def format_progress(s: dict[str, Any]) -> str:
         parts.append(f"ETA {_duration(s['eta_s'])}")
     parts.append(_duration(s["elapsed_s"]))
     return " · ".join(parts)
+
+
+def endpoint_waits(s: dict[str, Any]) -> str:
+    """What the model's requests are waiting for, named so a run that seems stuck says why:
+    "gpt-4o: 12 requests waiting 30 s to retry (429), 3 for the rate limit, 1 for an answer
+    for 95 s" ("" when none waits). The figures are the model client's (`activity()`)."""
+    waits = []
+    if s.get("retrying"):
+        why = f" ({s['retry_reason']})" if s.get("retry_reason") else ""
+        waits.append((s["retrying"], f"waiting {_seconds(s.get('retry_wait_s', 0))} to retry{why}"))
+    if s.get("rate_limited"):
+        waits.append((s["rate_limited"], "waiting for the rate limit"))
+    if s.get("answering_slow"):
+        waits.append((s["answering_slow"], f"waiting for an answer for {_seconds(s.get('answer_wait_s', 0))}"))
+    if not waits:
+        return ""
+    model = (s.get("config") or {}).get("model", "model")
+    (n, first), rest = waits[0], waits[1:]
+    said = [f"{n} request{'s' if n != 1 else ''} {first}", *(f"{n} {what.removeprefix('waiting ')}" for n, what in rest)]
+    return f"{model}: " + ", ".join(said)
+
+
+def _seconds(s: float) -> str:
+    return f"{s:.0f} s" if s < 120 else _duration(s)
 
 
 def _rate(per_s: float | None) -> str:

@@ -7,7 +7,9 @@ shared limiter. Agents by name (baselines included) are made in deepphy/agents.p
 from pathlib import Path
 
 from deepphy.chat import Usage
-from deepphy.models.base import AccessDenied, ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext
+from deepphy.models.base import (
+    AccessDenied, ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext, RequestRejected,
+)
 from deepphy.models.config import MissingKey, ModelConfig, ModelsFileError, load_models
 from deepphy.models.limiter import Limiter
 
@@ -38,5 +40,5 @@ def client_from_config(config: ModelConfig, limiter: Limiter | None = None) -> M
 
 __all__ = [
     "AccessDenied", "MissingKey", "ModelClient", "ModelConfig", "ModelsFileError", "ModelError", "ModelRequest", "ModelResponse",
-    "RequestContext", "Usage", "UnknownModel", "client_from_config", "load_models", "model_config",
+    "RequestContext", "RequestRejected", "Usage", "UnknownModel", "client_from_config", "load_models", "model_config",
 ]

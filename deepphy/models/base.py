@@ -78,6 +78,13 @@ class AccessDenied(ModelError):
     the run stops. The message names the endpoint and the key's variable, never the key."""
 
 
+class RequestRejected(ModelError):
+    """The endpoint rejected the request itself (a 4xx other than 401/403/408/409/429: e.g.
+    vLLM's 400 for more images than it takes per prompt, or a prompt longer than the model's
+    context). The same request would be rejected again: no retry, no re-queue; the run
+    stops with the endpoint's own words and what to change."""
+
+
 def _rebuild_model_error(cls: type, message: str, retries: int, kind: str) -> "ModelError":
     return cls(message, retries=retries, kind=kind)
 

@@ -61,6 +61,9 @@ PROVIDER_DEFAULTS: dict[Provider, dict[str, Any]] = {
 }
 
 
+TOTAL_SLACK_S = 60.0  # a request's default deadline: one whole try plus this (see Timeouts)
+
+
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -86,19 +89,30 @@ class RateLimits(_Strict):
 
 
 class Timeouts(_Strict):
-    """Deadlines of a request. Every try is bounded by all three of its own and by what is left
-    of `total_s`; a request never takes longer than `total_s`, retries and waits included."""
+    """Deadlines of a request. Every try is bounded by its connection, its first byte (the
+    status line), its body and its whole, and by what is left of `total_s`; a request never
+    takes longer than `total_s`, retries and waits included.
+
+    The defaults bound what one silent or dripping endpoint costs: a try that gets no status
+    line ends at `request_s`, one whose body trickles in ends `body_s` after its status line
+    (a provider sends the body it has already computed: seconds), and a request ends within
+    `request_s` + 60 s, so an attempt re-queued after model errors (the scheduler's
+    MODEL_REQUEUES) holds its episode for minutes, not the ~37 of 3 x request_s per request.
+    The progress line names requests that wait long for an answer
+    (deepphy.models.http.SLOW_ANSWER_S)."""
 
     connect_s: float = Field(10.0, gt=0, description="TCP (and TLS) connection")
     first_byte_s: float | None = Field(None, gt=0, description="from send to the response's status line (a "
                                        "provider computes the whole answer first); default request_s")
+    body_s: float = Field(30.0, gt=0, description="from the status line to the end of the body (it is computed "
+                          "by then: a body that trickles in is an endpoint in trouble)")
     request_s: float = Field(120.0, gt=0, description="one HTTP try, from send to the full response body")
     total_s: float | None = Field(None, gt=0, description="the whole request, every try and wait included; "
-                                  "default 3 x request_s")
+                                  "default request_s + 60 s (one whole try, and quick retries)")
 
     @property
     def deadline_s(self) -> float:
-        return self.total_s if self.total_s is not None else 3 * self.request_s
+        return self.total_s if self.total_s is not None else self.request_s + TOTAL_SLACK_S
 
 
 class RetryPolicy(_Strict):

@@ -8,14 +8,21 @@ A provider subclass says only how to build its request and read its response
   actually used. The limiter is injected: the model worker passes the cluster-wide Ray
   limiter; by default a client limits itself in-process (`LocalLimiter`);
 - deadlines (config `timeouts`): every try is bounded by its connection, its first byte
-  (the status line) and its whole body, and by what is left of the request's total, so a
-  request never takes longer than `timeouts.deadline_s`, retries and waits included;
+  (the status line), its body (from the status line) and its whole, and by what is left of
+  the request's total, so a request never takes longer than `timeouts.deadline_s`, retries
+  and waits included; deadlines are on the event loop's clock, as asyncio's timeouts are;
+- a response body is read up to `MAX_BODY_BYTES` and no further (a larger one is an
+  unusable answer, like malformed JSON);
 - retries with exponential backoff and jitter on 429, 408, 409, 5xx, timeouts,
-  connection errors and unusable 200s (malformed JSON, no choices); `Retry-After` /
-  `retry-after-ms` (Gemini: RetryInfo in the error body) is honoured up to
+  connection errors and unusable 200s (malformed JSON, no choices, too large);
+  `Retry-After` / `retry-after-ms` (Gemini: RetryInfo in the error body) is honoured up to
   max_retry_after_s: an endpoint that asks for longer fails the request at once; at most
-  max_retries; then `ModelError(retries=..., kind=...)`. Other 4xx fail at once; a
-  refused key (401, 403, Gemini's API_KEY_INVALID) is `AccessDenied`, which stops the run;
+  max_retries; then `ModelError(retries=..., kind=...)`. A refused key (401, 403, Gemini's
+  API_KEY_INVALID) is `AccessDenied` and any other 4xx `RequestRejected` (vLLM's 400 for
+  too many images or too long a prompt): the same request would fail again, so both stop
+  the run with one line;
+- `activity()`: what the requests are waiting for now (the rate limit; a retry, how long
+  and why; an answer that is slow to come), for the progress line;
 - the key is read from the environment, held as a SecretStr, never pickled, never in
   repr, and scrubbed from every error text.
 """
@@ -23,9 +30,9 @@ A provider subclass says only how to build its request and read its response
 from __future__ import annotations
 
 import asyncio
+import itertools
 import json
 import random
-import time
 from collections import Counter
 from typing import Any
 
@@ -33,7 +40,9 @@ import aiohttp
 from pydantic import SecretStr
 
 from deepphy.chat import Message
-from deepphy.models.base import AccessDenied, ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext, Usage
+from deepphy.models.base import (
+    AccessDenied, ModelClient, ModelError, ModelRequest, ModelResponse, RequestContext, RequestRejected, Usage,
+)
 from deepphy.models.config import ModelConfig
 from deepphy.models.limiter import Limiter, LocalLimiter
 from deepphy.models.wire import (
@@ -44,6 +53,11 @@ from deepphy.seeding import seeded_rng
 
 RETRYABLE_STATUS = {408, 409, 429}  # plus every 5xx (Anthropic's 529 "overloaded" included)
 DENIED_STATUS = {401, 403}  # and Gemini's 400 with reason API_KEY_INVALID
+# A reply is cut to 32,768 characters (deepphy.envs.parsing) and a provider's JSON around it
+# is a few kB: a body past this is no answer, and reading it whole first (a 50 MB body was)
+# costs the worker its memory.
+MAX_BODY_BYTES = 8 * 1024**2
+SLOW_ANSWER_S = 30.0  # a try waiting longer than this for its answer is named on the progress line
 
 
 class EmptyReply(ValueError):
@@ -76,7 +90,11 @@ class HTTPModelClient(ModelClient):
         self._session: aiohttp.ClientSession | None = None
         self._session_loop: asyncio.AbstractEventLoop | None = None
         self._rng = random.Random()
-        self._waiting: Counter[str] = Counter()  # requests waiting now: "rate_limited", "retrying"
+        # What the requests in flight are doing now, for `activity()` (times on the loop's clock):
+        self._rate_limited = 0  # waiting for the limiter
+        self._retrying: dict[int, tuple[float, str]] = {}  # request -> (end of its back-off, why)
+        self._trying: dict[int, float] = {}  # request -> when its current try was sent
+        self._ids = itertools.count()
 
     # --- what a provider supplies -------------------------------------------------------
 
@@ -133,8 +151,21 @@ class HTTPModelClient(ModelClient):
             await self._session.close()
         self._session = None
 
-    async def activity(self) -> dict[str, int]:
-        return {"rate_limited": self._waiting["rate_limited"], "retrying": self._waiting["retrying"]}
+    async def activity(self) -> dict[str, Any]:
+        """Requests waiting now: for the rate limit; before a retry (`retry_wait_s`: the
+        longest wait left, `retry_reason`: the commonest cause, e.g. "429" or "timeout"); for
+        an answer longer than SLOW_ANSWER_S (`answer_wait_s`: the longest so far)."""
+        now = asyncio.get_running_loop().time()
+        waits = self._retrying.values()
+        slow = [now - sent for sent in self._trying.values() if now - sent > SLOW_ANSWER_S]
+        return {
+            "rate_limited": self._rate_limited,
+            "retrying": len(self._retrying),
+            "retry_wait_s": max((end - now for end, _ in waits), default=0.0),
+            "retry_reason": Counter(why for _, why in waits).most_common(1)[0][0] if waits else "",
+            "answering_slow": len(slow),
+            "answer_wait_s": max(slow, default=0.0),
+        }
 
     def _delay(self, retry: int, retry_after: float | None) -> float:
         p = self.config.retry
@@ -145,29 +176,36 @@ class HTTPModelClient(ModelClient):
 
     async def _try(self, session: aiohttp.ClientSession, url: str, payload: bytes, headers: dict[str, str],
                    left_s: float):
-        """One try, bounded by the first byte, the whole response and `left_s` of the request."""
+        """One try, bounded by the first byte, the body, the whole response and `left_s` of the request."""
         t = self.config.timeouts
         whole = min(t.request_s, left_s)
         first = min(t.first_byte_s or t.request_s, whole)
-        phase = "first byte"
-        started = time.monotonic()
+        loop = asyncio.get_running_loop()
+        started = loop.time()
+        first_cm = asyncio.timeout(first)
+        body_cm = None  # the body's deadline counts from the status line
         try:
             async with asyncio.timeout(whole):
-                async with asyncio.timeout(first):
+                async with first_cm:
                     resp = await session.post(url, data=payload, headers=headers)
-                phase = "whole response"
-                async with resp:
-                    raw = await resp.read()
+                status_at, body_cm = loop.time(), asyncio.timeout(t.body_s)
+                async with resp, body_cm:
+                    raw = await _read_capped(resp)
                     status, rheaders = resp.status, resp.headers
         except TimeoutError:
-            took = time.monotonic() - started
-            raise _Failure("timeout", f"no {phase} within {took:.3g} s", True) from None
+            if body_cm is not None and body_cm.expired():
+                what = f"whole body within {t.body_s:g} s of the status line ({status_at - started:.3g} s after sending)"
+            else:
+                what = f"{'first byte' if first_cm.expired() else 'whole response'} within {loop.time() - started:.3g} s"
+            raise _Failure("timeout", f"no {what}", True) from None
         except aiohttp.ClientError as e:
             raise _Failure("connection", f"connection error: {type(e).__name__}: {self._redact(str(e))[:200]}", True) from None
         if status != 200:
-            snippet = self._redact(raw[:300].decode("utf-8", "replace")).replace("\n", " ")
+            snippet = self._redact(_said(raw))
             if status in DENIED_STATUS or (status == 400 and b"API_KEY_INVALID" in raw):
                 raise _Failure("denied", f"HTTP {status}: {snippet}", False)
+            if 400 <= status < 500 and status not in RETRYABLE_STATUS:
+                raise _Failure("rejected", f"HTTP {status}: {snippet}", False)
             retryable = status in RETRYABLE_STATUS or status >= 500
             raise _Failure(f"http_{status}", f"HTTP {status}: {snippet}", retryable, parse_retry_after(rheaders, body=raw))
         try:
@@ -204,22 +242,28 @@ class HTTPModelClient(ModelClient):
         lease_s = cfg.timeouts.request_s + cfg.timeouts.connect_s + 30.0
         session = self._get_session()
         url = self.url()
-        deadline = time.monotonic() + cfg.timeouts.deadline_s
+        clock = asyncio.get_running_loop().time
+        deadline = clock() + cfg.timeouts.deadline_s
         retries = 0
+        me = next(self._ids)
         while True:
             grant = None
             if limiter is not None:
-                self._waiting["rate_limited"] += 1
+                self._rate_limited += 1
                 try:
                     grant = await limiter.acquire(estimate_in + max_tokens, lease_s)
                 finally:
-                    self._waiting["rate_limited"] -= 1
+                    self._rate_limited -= 1
             used = estimate_in + max_tokens
             try:
-                left = deadline - time.monotonic()
+                left = deadline - clock()
                 if left <= 0:
                     raise _Failure("deadline", f"no answer within the request's {cfg.timeouts.deadline_s:g} s", False)
-                text, tin, tout = await self._try(session, url, payload, headers, left)
+                self._trying[me] = clock()
+                try:
+                    text, tin, tout = await self._try(session, url, payload, headers, left)
+                finally:
+                    del self._trying[me]
                 tin = tin if tin is not None else estimate_in
                 tout = tout if tout is not None else 0
                 used = tin + tout
@@ -227,13 +271,16 @@ class HTTPModelClient(ModelClient):
                 note = f" (after {retries} retries)" if retries else ""
                 if f.kind == "denied":
                     raise self._denied(f.message) from None
+                if f.kind == "rejected":
+                    raise self._rejected(f.message, sum(len(m.images) for m in messages)) from None
                 if f.retry_after is not None and f.retry_after > cfg.retry.max_retry_after_s:
                     raise ModelError(f"{self.name}: {f.message} asks to wait {f.retry_after:g} s, longer than "
                                      f"max_retry_after_s ({cfg.retry.max_retry_after_s:g} s){note}",
                                      retries=retries, kind="retry_after") from None
                 delay = self._delay(retries, f.retry_after) if f.retryable else 0.0
-                if not f.retryable or retries >= cfg.retry.max_retries or time.monotonic() + delay >= deadline:
+                if not f.retryable or retries >= cfg.retry.max_retries or clock() + delay >= deadline:
                     raise ModelError(f"{self.name}: {f.message}{note}", retries=retries, kind=f.kind) from None
+                why = f.kind.removeprefix("http_")  # for the progress line: "429", "timeout", ...
             else:
                 return ModelResponse(
                     text=text,
@@ -245,11 +292,11 @@ class HTTPModelClient(ModelClient):
                 if grant is not None:
                     await limiter.release(grant, used)
             retries += 1
-            self._waiting["retrying"] += 1
+            self._retrying[me] = (clock() + delay, why)
             try:
                 await asyncio.sleep(delay)
             finally:
-                self._waiting["retrying"] -= 1
+                del self._retrying[me]
 
     def _denied(self, message: str) -> AccessDenied:
         cfg = self.config
@@ -257,3 +304,40 @@ class HTTPModelClient(ModelClient):
                else "no key (this entry has no api_key_env)")
         return AccessDenied(f"model {self.name} at {cfg.resolved_base_url} refused {key}: {message}; "
                             "check the key and its permissions for this model", kind="denied")
+
+    def _rejected(self, message: str, images: int) -> RequestRejected:
+        cfg = self.config
+        if message.startswith("HTTP 404"):
+            hint = f"check base_url and the model id ({cfg.model}) of this entry"
+        else:  # vLLM, SGLang and the providers answer 400 (413, 422) for these two
+            hint = (f"a server answers so for more images than it takes per prompt (this one sent {images}; the "
+                    f"entry's max_images is {cfg.resolved_max_images}) or a prompt longer than the model's "
+                    "context: lower max_images for this entry in the models file, or serve a longer context")
+        return RequestRejected(f"model {self.name} at {cfg.resolved_base_url} rejected the request: {message}; "
+                               f"{hint}", kind="rejected")
+
+
+def _said(raw: bytes) -> str:
+    """What an error body says, in one line: the message of a provider's (or vLLM's) error
+    JSON, else the body's start."""
+    try:
+        data = json.loads(raw)
+        error = data.get("error", data) if isinstance(data, dict) else data
+        said = error.get("message") or error.get("detail") if isinstance(error, dict) else None
+        text = said if isinstance(said, str) else raw[:300].decode("utf-8", "replace")
+    except ValueError:
+        text = raw[:300].decode("utf-8", "replace")
+    return " ".join(text.split())[:300]
+
+
+async def _read_capped(resp: aiohttp.ClientResponse) -> bytes:
+    """The body, read no further than MAX_BODY_BYTES (the connection is dropped beyond)."""
+    if (resp.content_length or 0) > MAX_BODY_BYTES:
+        raise _Failure("too_large", f"response body of {resp.content_length:,} bytes, over {MAX_BODY_BYTES:,}", True)
+    chunks, size = [], 0
+    async for chunk in resp.content.iter_any():
+        size += len(chunk)
+        if size > MAX_BODY_BYTES:
+            raise _Failure("too_large", f"response body over {MAX_BODY_BYTES:,} bytes", True)
+        chunks.append(chunk)
+    return b"".join(chunks)

@@ -33,7 +33,9 @@ RetryInfo detail in the body), `500`,
 `hang` (no answer for --hang seconds, past any sane client timeout), `malformed` (200
 with truncated JSON), `empty` (200 with no choices / content / candidates), `prose` (200
 with a reply that contains no action); and, only when named, `drip` (a 200 whose body
-arrives one byte every --drip seconds). Whether a request is faulted, and how, depends
+arrives one byte every --drip seconds). With `--max-images` / `--max-context-tokens` it
+refuses a prompt past a vLLM deployment's limits with vLLM's own 400 (OpenAI format).
+Whether a request is faulted, and how, depends
 only on the seed, the request (body + context header) and how many times that same
 request arrived before, so a run's faults do not depend on timing or arrival order; a
 retry of a request draws again.

@@ -36,6 +36,7 @@ import hashlib
 import logging
 import os
 import pickle
+import sys
 import tempfile
 import threading
 from dataclasses import dataclass
@@ -62,6 +63,34 @@ _configured = False
 # is too old for its multiprocess worker profiling, which nothing here uses: `deepphy show`
 # printed it. Only that message is dropped.
 logging.getLogger("absl").addFilter(lambda record: not record.getMessage().startswith("Grain multiprocess"))
+
+
+JAX_DEFAULT_LOG_LEVEL = "1"  # what `import jax` sets TF_CPP_MIN_LOG_LEVEL to when it is unset
+
+
+def quiet_xla_log() -> None:
+    """Keep XLA's C++ log (absl, on file descriptor 2) to fatal errors, unless the user chose
+    its level (TF_CPP_MIN_LOG_LEVEL other than jax's own default). jaxlib 0.9 logs an ERROR
+    for every program it loads from the persistent compilation cache (cpu_aot_loader.cc:
+    "Target machine feature +prefer-no-scatter is not supported on the host machine ...
+    could lead to ... SIGILL": it compares tuning flags that are no CPU features, on the
+    machine that compiled them): `gymnasium.make("deepphy/kinetix-v0")` printed 128 such
+    lines (237 KB), `--dry-run` 16. Our own errors are Python's (exceptions, logging), which
+    this does not touch; a failure inside XLA still raises one. Done here, where JAX is
+    first imported: jaxlib reads the variable as it loads; one loaded already is told."""
+    if os.environ.get("TF_CPP_MIN_LOG_LEVEL", JAX_DEFAULT_LOG_LEVEL) != JAX_DEFAULT_LOG_LEVEL:
+        return
+    os.environ["TF_CPP_MIN_LOG_LEVEL"] = "3"
+    if "jaxlib" in sys.modules:  # imported before deepphy's Kinetix (by the user's own code)
+        try:
+            from jax._src.lib import utils
+
+            utils.absl_set_min_log_level(3)
+        except (ImportError, AttributeError):  # another jaxlib: its log stays as it is
+            pass
+
+
+quiet_xla_log()
 
 
 def cache_root() -> Path:
