@@ -246,7 +246,7 @@ def test_the_progress_view_stops_when_its_snapshot_arrives_as_the_run_ends():
         metrics = SimpleNamespace(update=Method(), snapshot=Method(snapshot))
         scheduler = SimpleNamespace(send_summaries=lambda: None, activity=lambda: {},
                                     model=SimpleNamespace(activity=waiting))
-        view = asyncio.ensure_future(_progress(scheduler, metrics, ["running"], io.StringIO()))
+        view = asyncio.ensure_future(_progress(scheduler, metrics, ["running"], io.StringIO(), lambda phase: phase))
         await asyncio.wait_for(asked.wait(), 30)
         answer.set_result(LiveMetrics(1, 1).snapshot())  # the snapshot comes back ...
         view.cancel()  # ... in the turn that stops the view
