@@ -33,7 +33,10 @@ class ProbeAgent(Agent):
             state["token"] = _Token()
             LIVE.add(state["token"])
         state["seen"] = state.get("seen", 0) + 1
-        assigned = ray.get_runtime_context().get_assigned_resources() if ray.is_initialized() else None
+        try:  # an actor's resources; None in the driver (an agent in this process)
+            assigned = ray.get_runtime_context().get_assigned_resources() if ray.is_initialized() else None
+        except AssertionError:  # Ray says "only available when the process is a worker"
+            assigned = None
         seen = {"assigned": assigned, "seen": state["seen"],
                 "live": len(LIVE)}
         return json.dumps(seen) + "\n" + mock_text(request.context)
