@@ -305,6 +305,8 @@ FILMED = {  # environment, task, an action: the environments whose steps are fil
     "iphyre": ("support", '[{"time": 1.0, "index": 0}]'),
     "kinetix": ("s_h3_point_the_thruster", "[1, 1]"),
     "pooltool": ("rack_000", "Speed: High, Strikespot: top-left"),
+    "angrybirds": ("s1_l01", "shoot(angle=40, power=0.9)"),
+    "cuttherope": ("b1_l01", "sleep(2)"),
 }
 
 
