@@ -22,6 +22,13 @@ SEED_MIN, SEED_MAX = -(2**63), 2**63 - 1  # a 64-bit integer, as datasets and Nu
 PromptSet = Literal["paper", "before-parity"]
 PROMPTS = "paper"
 
+HUMAN_PREFIX = "human:"  # a person's run (`deepphy play`) has the model `human:NAME`
+
+
+def is_human(model: str) -> bool:
+    """Whether a run's model is a person: its decision times are a person's, not a model's latency."""
+    return model.startswith(HUMAN_PREFIX)
+
 
 class RunConfig(BaseModel):
     """What a run evaluates. Written to <run dir>/config.json; a resume must match it exactly."""

@@ -25,7 +25,7 @@ from conftest import data_file
 from deepphy.config import RunConfig
 from deepphy.envs import ActionSpace, get_spec
 from deepphy.play.human import JOURNAL
-from deepphy.runs.store import read_records
+from deepphy.runs.store import episode_prompts, read_records, stored_image
 from play_support import PlayThread, model_run, person_run, same_records
 from test_dashboard_browser import CHROMIUM, browser, screenshots  # noqa: F401 (fixtures)
 
@@ -379,6 +379,92 @@ class PlayProcess:
         self.proc.wait(30)
 
 
+# -- parity: the page shows a person what the model is shown, no more ----------------------------
+
+# What the page shows of the decision waiting: every part of the prompt in the prompt's order
+# (texts, and images by the sha256 of the bytes the page loaded), the system text, and every
+# picture anywhere on the page (none may be beyond the prompt's).
+PAGE_PROMPT = """async () => {
+  const sha = async (url) => { const bytes = await (await fetch(url)).arrayBuffer();
+    return [...new Uint8Array(await crypto.subtle.digest("SHA-256", bytes))].map(b => b.toString(16).padStart(2, "0")).join(""); };
+  const parts = [];
+  for (const node of document.querySelectorAll("#decision [data-part]")) {
+    parts.push([Number(node.dataset.part), node.tagName === "IMG" ? {image: await sha(node.src)} : {text: node.textContent}]);
+  }
+  const shown = [...document.images].filter(i => i.getAttribute("src") && i.offsetParent !== null && !i.closest("[hidden]"));
+  return {key: state.decision.key, system: document.querySelector("#system").textContent, parts,
+          images: await Promise.all(shown.map(i => sha(i.src)))};
+}"""
+
+
+def parity_case(env: str) -> tuple[RunConfig, object, list[str]]:
+    """A play of `env` with history in its prompts: two attempts where there are several,
+    several decisions where an attempt has them."""
+    if env == "phyre":
+        task, solution = phyre_solution()
+        return RunConfig(env="phyre", model="human:tester", runs=1, tasks=[task], max_attempts=2), drive_phyre, \
+            ["Cell: 1, Radius: 1", solution]
+    if env == "iphyre":
+        return RunConfig(env="iphyre", model="human:tester", runs=1, tasks=["support"], max_attempts=2), drive_iphyre, \
+            ['[{"time": 0.5, "index": 0}]', '[{"time": 2.0, "index": 1}]']
+    if env == "angrybirds":
+        level, plan = angrybirds_plan()
+        return RunConfig(env="angrybirds", model="human:tester", runs=1, tasks=[level]), drive_angrybirds, plan
+    if env == "cuttherope":
+        level, plan = cuttherope_plan()
+        return RunConfig(env="cuttherope", model="human:tester", runs=1, tasks=[level]), drive_cuttherope, plan
+    if env == "pooltool":
+        shots = [POOL_SHOTS[k % len(POOL_SHOTS)] for k in range(get_spec("pooltool").max_steps)]
+        return RunConfig(env="pooltool", model="human:tester", runs=1, tasks=["rack_000"]), drive_pooltool, shots
+    level = kinetix_level()
+    cls = get_spec("kinetix").load()
+    space = cls().reset(next(t for t in cls.tasks(cls.Options()) if t.id == level)).action_space
+    vector = json.dumps([1] * space.num_motors + [1] * space.num_thrusters)
+    return RunConfig(env="kinetix", model="human:tester", runs=1, tasks=[level]), drive_kinetix, \
+        [vector] * get_spec("kinetix").max_steps
+
+
+@pytest.mark.parametrize("env", [pytest.param(e, marks=[pytest.mark.slow] if e in ("kinetix", "pooltool") else [])
+                                 for e in ("phyre", "iphyre", "angrybirds", "cuttherope", "pooltool", "kinetix")])
+def test_the_page_shows_a_person_what_the_model_is_shown(env, play, open_page, tmp_path):
+    """Before every decision the page shows exactly the prompt the model would get: its system
+    text, and every part of its user message in order (images compared by the sha256 of the
+    bytes the page shows with the run directory's stored prompt), and no picture beyond them
+    (no key frame of a decision before the next prompt has it, as a model gets it)."""
+    config, drive, texts = parity_case(env)
+    server = play(config, tmp_path / "person")
+    page = open_page(server.url)
+    shown: dict[str, dict] = {}
+    wait_for_decision(page)
+    while page.get_attribute("#status", "data-state") != "finished":
+        assert len(shown) < len(texts), f"the play goes on after the {len(texts)} actions given"
+        seen = page.evaluate(PAGE_PROMPT)
+        shown[seen["key"]] = seen
+        set_action(page, drive, texts[len(shown) - 1])
+        act(page)
+    records = read_records(tmp_path / "person")
+    decisions = [(r, s) for r in records for s in r.steps]
+    assert len(decisions) == len(shown) and len(shown) >= 2
+    prompts = []  # (where, what the page showed, the stored system text, the stored user parts)
+    for record, step in decisions:
+        logged = episode_prompts(tmp_path / "person", record.task, record.run)
+        [seen] = [v for k, v in shown.items() if k == f"{record.task}|{record.run}|{record.attempt}|{step.step}|{step.prompt}"]
+        system, user = logged[step.prompt]
+        stored = [{"image": stored_image(p)[0]} if stored_image(p) else {"text": p} for p in user["content"]]
+        prompts.append((f"attempt {record.attempt} decision {step.step}", seen, system, stored))
+    extra = {where: len(set(seen["images"]) - {p["image"] for p in stored if "image" in p})
+             for where, seen, _, stored in prompts}
+    assert not any(extra.values()), f"pictures beyond the prompt's on the page: {extra}"
+    for where, seen, system, stored in prompts:
+        assert sorted(seen["images"]) == sorted(p["image"] for p in stored if "image" in p), where
+        assert seen["system"] == "\n\n".join(system["content"]), where
+        assert [p for _, p in sorted(seen["parts"], key=lambda x: x[0])] == stored, where
+    sizes = [len(v["parts"]) for v in shown.values()]
+    # later prompts carry history (earlier decisions or attempts), and the page shows it;
+    # Pooltool's prompt is the table as it is now, with no history (as the paper's)
+    assert max(sizes) > sizes[0] or env == "pooltool"
+
+
 def test_closing_the_page_or_stopping_the_server_mid_level_loses_nothing(open_page, tmp_path):
     level, plan = cuttherope_plan()
     assert len(plan) >= 3
@@ -394,7 +480,7 @@ def test_closing_the_page_or_stopping_the_server_mid_level_loses_nothing(open_pa
         page = open_page(server.url)
         wait_for_decision(page)
         assert decision(page)["key"] == waiting["key"] and waiting["step"] == 2  # the same decision waits
-        assert page.text_content("#last h2").endswith(written[0])  # and what the first one did is shown
+        assert page.text_content("#last code") == written[0]  # and the action the first one took is named
         written.append(set_action(page, drive_cuttherope, plan[1]))
         act(page)
         third = decision(page)["key"]
