@@ -21,7 +21,7 @@ from typing import Any, Callable, Collection, Sequence
 
 from deepphy.envs import get_spec, specs
 from deepphy.metrics.report import (
-    LATEX_PREAMBLE, _count, _pct, episodes_done, latex_escape, mixed_task_sets, options_of, paper_setting, sample_size,
+    LATEX_PREAMBLE, LATEX_WIDTH, _count, _pct, episodes_done, latex_escape, mixed_task_sets, options_of, paper_setting, sample_size,
 )
 
 BEST = "*"  # after the best value of a column (text, Markdown, CSV); LaTeX sets it in bold
@@ -339,22 +339,31 @@ def render_json(board: Leaderboard) -> str:
     return json.dumps(as_dict(board), indent=2)
 
 
+def _latex_blocks(board: Leaderboard, width: int = LATEX_WIDTH) -> list[list[int]]:
+    """The groups (by index) of each block of a wide table: as many as fit in `width`
+    characters of plain text beside the row labels; a group wider than that is a block alone."""
+    label = max(len(board.row_label(i)) for i in range(len(board.rows))) + 2 if board.rows else 8
+    blocks: list[list[int]] = []
+    used = width
+    for g, group in enumerate(board.groups):
+        w = max(len(group.title), sum(2 + max([len(c.header)] + [len(_marked(board.cells[(r, g)][k]))
+                                                                 for r in range(len(board.rows)) if (r, g) in board.cells])
+                                      for k, c in enumerate(group.columns)))
+        if blocks and used + w <= width:
+            blocks[-1].append(g)
+            used += w
+        else:
+            blocks.append([g])
+            used = label + w
+    return blocks
+
+
 def render_latex(board: Leaderboard) -> str:
-    """A `table*` float: a column group per environment setting, best values in bold.
-    Needs `\\usepackage{booktabs}` and `\\usepackage{graphicx}` (LATEX_PREAMBLE)."""
-    n = sum(len(g.columns) for g in board.groups)
-    top, rules, j = ["Setting"], [], 2
-    for g in board.groups:
-        top.append(r"\multicolumn{%d}{c}{%s}" % (len(g.columns), latex_escape(g.title)))
-        rules.append(r"\cmidrule(lr){%d-%d}" % (j, j + len(g.columns) - 1))
-        j += len(g.columns)
-    header = [""] + [latex_escape(c.header) for g in board.groups for c in g.columns]
-    body = []
-    for i in range(len(board.rows)):
-        cells = [(r"\textbf{%s}" if c.best else r"%s$^\dagger$" if c.unranked else "%s") % latex_escape(c.text)
-                 for c in board.row_cells(i)]
-        body.append(" & ".join([latex_escape(board.row_label(i)), *cells]) + r" \\")
-    return "\n".join([
+    """A `table*` float: a column group per environment setting, best values in bold,
+    unranked ones with a dagger; wide tables split between groups into blocks stacked in
+    one box (each repeating the row labels), scaled down to the line width only if still
+    wider. Needs `\\usepackage{booktabs}` and `\\usepackage{graphicx}` (LATEX_PREAMBLE)."""
+    lines = [
         f"% deepphy leaderboard --latex; preamble: {LATEX_PREAMBLE}",
         r"\begin{table*}[htbp]",
         r"\centering",
@@ -362,14 +371,32 @@ def render_latex(board: Leaderboard) -> str:
                                                 *(f"note: {n}" for n in board.notes)])) + "}",
         r"\label{tab:deepphy-leaderboard}",
         r"\resizebox{\ifdim\width>\linewidth\linewidth\else\width\fi}{!}{%",
-        r"\begin{tabular}{l" + "r" * n + "}",
-        r"\toprule",
-        " & ".join(top) + r" \\",
-        "".join(rules),
-        " & ".join(header) + r" \\",
-        r"\midrule",
-        *body,
-        r"\bottomrule",
-        r"\end{tabular}}",
-        r"\end{table*}",
-    ])
+        r"\begin{tabular}{@{}l@{}}",
+    ]
+    for b, groups in enumerate(_latex_blocks(board)):
+        n = sum(len(board.groups[g].columns) for g in groups)
+        top, rules, j = ["Setting"], [], 2
+        for g in groups:
+            group = board.groups[g]
+            top.append(r"\multicolumn{%d}{c}{%s}" % (len(group.columns), latex_escape(group.title)))
+            rules.append(r"\cmidrule(lr){%d-%d}" % (j, j + len(group.columns) - 1))
+            j += len(group.columns)
+        header = [""] + [latex_escape(c.header) for g in groups for c in board.groups[g].columns]
+        body = []
+        for i in range(len(board.rows)):
+            cells = [(r"\textbf{%s}" if c.best else r"%s$^\dagger$" if c.unranked else "%s") % latex_escape(c.text)
+                     for g in groups for c in board.cells.get((i, g), _missing(board.groups[g]))]
+            body.append(" & ".join([latex_escape(board.row_label(i)), *cells]) + r" \\")
+        lines += [
+            *([r"\\ \noalign{\vskip 2ex}"] if b else []),
+            r"\begin{tabular}{l" + "r" * n + "}",
+            r"\toprule",
+            " & ".join(top) + r" \\",
+            "".join(rules),
+            " & ".join(header) + r" \\",
+            r"\midrule",
+            *body,
+            r"\bottomrule",
+            r"\end{tabular}",
+        ]
+    return "\n".join([*lines, r"\end{tabular}}", r"\end{table*}"])
