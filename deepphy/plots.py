@@ -106,6 +106,12 @@ def _legend(ax: Axes, handles=None, labels_=None, title: str | None = None) -> N
     ax.figure.legend(handles, labels_, loc="outside lower center", ncols=per_row, frameon=False, title=title)
 
 
+def _ylabel(ax: Axes, text: str) -> None:
+    """A y label on as many lines as the axes' height needs (a one-column figure is short)."""
+    fits = int((ax.figure.get_figheight() - 1.2) * 72 / (STYLE["axes.labelsize"] * CHAR_EM))
+    ax.set_ylabel(textwrap.fill(text, max(12, fits)))
+
+
 def _ticks(ax: Axes, positions: Sequence[float], names: Sequence[str]) -> None:
     """x tick labels that fit: turned when they would run into each other."""
     width = ax.figure.get_figwidth() * 0.85 / max(1, len(names))  # inches per label
@@ -202,7 +208,7 @@ def draw_success_by_attempt(ax: Axes, reports: Sequence[Report]) -> dict[str, An
     ax.set_xlim(0.7, k_max + 0.3)
     ax.set_ylim(0, _percent_limits(top))
     ax.set_xlabel("attempts (k)")
-    ax.set_ylabel("tasks solved within k attempts (%)")
+    _ylabel(ax, "tasks solved within k attempts (%)")
     _legend(ax)
     return drawn
 
@@ -244,7 +250,7 @@ def draw_success_by_step(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
     ax.set_xlim(0.5, n_steps + 0.5)
     ax.set_ylim(0, _percent_limits(top))
     ax.set_xlabel(f"{noun}s (k)")
-    ax.set_ylabel(f"tasks solved within k {noun}s (%)")
+    _ylabel(ax, f"tasks solved within k {noun}s (%)")
     _legend(ax)
     return drawn
 
@@ -281,14 +287,14 @@ def draw_group_bars(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
         top = max([top] + [100 * ((v or 0) + e) for v, e in zip(values, high)])
         drawn["bars"].append({"label": names[i], "n": sample_size(r), "success": values, "std": errs})
     _style(ax)
-    ax.set_xticks(range(len(groups)), groups)
+    _ticks(ax, range(len(groups)), groups)
     ax.axvline(len(groups) - 1.5, color="#9ca3af", linewidth=0.8, linestyle=":")  # the groups | all
     _slot_limits(ax, len(groups))
     ax.set_ylim(0, _percent_limits(top))
     noun = grouped[0]["group_noun"] if grouped else "group"
     k = max((r["max_attempts"] for r in grouped), default=1)
     ax.set_xlabel(noun)
-    ax.set_ylabel("tasks solved (%)" if k == 1 else f"tasks solved within {k} attempts (%)")
+    _ylabel(ax, "tasks solved (%)" if k == 1 else f"tasks solved within {k} attempts (%)")
     _legend(ax)
     return drawn
 
