@@ -88,7 +88,7 @@ def test_a_run_in_progress_shows_rates_over_its_finished_episodes(run_dir, tmp_p
     assert view["report"] == report_of(copy) and view["partial"] == {"finished": finished, "total": 12}
     assert 0 < finished < 12 and view["curve"]["mean"] == partial["overall"]["mean"]["success_at"]
     assert view["solved_rate"] == partial["overall"]["mean"]["success_at"][-1]
-    assert view["table"]["rows"] == table([partial])[1] and view["n"] == f"6x2, {finished} done"
+    assert view["table"]["rows"] == table([partial])[1] and view["n"] == f"6x2 ({finished} done)"
     assert loaded(run_dir).view()["partial"] is None  # a finished run: the whole report
 
 

@@ -382,7 +382,7 @@ def test_leaderboard_of_a_suite_root_follows_its_runs(serve, open_page, screensh
                            ".map(r => [...r.children].map(c => c.textContent))) === JSON.stringify(rows)", arg=expected)
     gpt = next(r for r in expected if r[0] == "gpt-4o VLA")
     # Angry Birds not started; I-PHYRE cut; each with its n
-    assert gpt[1:3] == ["4x2, 0 done", "unfinished 0/8"] and gpt[5].startswith("unfinished ") and gpt[4].startswith("4x2, ")
+    assert gpt[1:3] == ["4x2 (0 done)", "unfinished 0/8"] and gpt[5].startswith("unfinished ") and gpt[4].startswith("4x2 (")
     header = page.eval_on_selector_all("table.leaderboard thead tr:first-child th[colspan]", "ths => ths.map(t => t.textContent)")
     assert header == ["Angry Birds", "I-PHYRE"]
     page.screenshot(path=str(screenshots / "dashboard_leaderboard_unfinished.png"), full_page=True)

@@ -88,7 +88,7 @@ def test_unfinished_runs_are_marked_and_never_averaged_or_best(root, tmp_path):
     cut = board.cells[(1, 0)]
     done = sum(x["tasks"] - x["unfinished"] for x in report_of(tmp_path / "cut")["overall"]["per_run"])
     assert cut[1].unfinished == f"{done}/12" and cut[1].text == f"unfinished {done}/12"
-    assert cut[0].text == f"6x2, {done} done"  # n: tasks x runs, and the episodes done
+    assert cut[0].text == f"6x2 ({done} done)"  # n: tasks x runs, and the episodes done
     assert all(c.mean is None and not c.best for c in cut)
     assert not any(c.best for c in board.cells[(0, 0)])  # one finished row: nothing to compare
 

@@ -356,6 +356,6 @@ def test_a_partial_report_counts_finished_episodes_only_and_says_so():
     assert full["overall"]["mean"]["success_at"][9] == 0.25  # 1 of 4 tasks, c and d counted as unsolved
     assert partial["overall"]["mean"]["success_at"][9] == 0.5  # 1 of the 2 finished (a solved, b failed)
     assert partial["partial"] and full["overall"]["finished"] == partial["overall"]["finished"] == 2
-    assert table([full])[1][0][1] == "4x1, 2 done"
+    assert table([full])[1][0][1] == "4x1 (2 done)"
     assert "partial, 2 of 4 episodes finished" in render_text(full)
     assert "over the finished episodes only" in render_text(partial)

@@ -21,7 +21,8 @@ from typing import Any, Callable, Collection, Sequence
 
 from deepphy.envs import get_spec, specs
 from deepphy.metrics.report import (
-    LATEX_PREAMBLE, LATEX_WIDTH, _count, _pct, episodes_done, latex_escape, mixed_task_sets, options_of, paper_setting, sample_size,
+    LATEX_PREAMBLE, LATEX_WIDTH, _count, _pct, episodes_done, latex_escape, mixed_task_sets, options_of, paper_setting,
+    sample_size,
 )
 
 BEST = "*"  # after the best value of a column (text, Markdown, CSV); LaTeX sets it in bold
@@ -213,7 +214,8 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
             if not classes:
                 continue
             # the class of the most rows (on a tie, the most tasks x runs) is ranked
-            ranked_key = max(classes, key=lambda k: (len(classes[k]), in_group[classes[k][0][0]]["overall"]["tasks"] * k[1]))
+            size = lambda k: in_group[classes[k][0][0]]["overall"]["tasks"] * k[1]  # noqa: E731 - tasks x runs
+            ranked_key = max(classes, key=lambda k: (len(classes[k]), size(k)))
             ranked = classes[ranked_key]
             for key, members in classes.items():
                 if key != ranked_key:
@@ -346,9 +348,9 @@ def _latex_blocks(board: Leaderboard, width: int = LATEX_WIDTH) -> list[list[int
     blocks: list[list[int]] = []
     used = width
     for g, group in enumerate(board.groups):
-        w = max(len(group.title), sum(2 + max([len(c.header)] + [len(_marked(board.cells[(r, g)][k]))
-                                                                 for r in range(len(board.rows)) if (r, g) in board.cells])
-                                      for k, c in enumerate(group.columns)))
+        cells = [board.cells[(r, g)] for r in range(len(board.rows)) if (r, g) in board.cells]
+        w = max(len(group.title),
+                sum(2 + max([len(c.header)] + [len(_marked(row[k])) for row in cells]) for k, c in enumerate(group.columns)))
         if blocks and used + w <= width:
             blocks[-1].append(g)
             used += w

@@ -195,10 +195,10 @@ def episodes_done(report: dict[str, Any], section: dict[str, Any] | None = None)
 
 
 def sample_size(report: dict[str, Any], section: dict[str, Any] | None = None) -> str:
-    """n of a row: tasks x runs, and the episodes finished where not all are ("40x3", "40x3, 31 done")."""
+    """n of a row: tasks x runs, and the episodes finished where not all are ("40x3", "40x3 (31 done)")."""
     sec = report["overall"] if section is None else section
     done, total = episodes_done(report, sec)
-    return f"{sec['tasks']}x{report['runs']}" + ("" if done == total else f", {done} done")
+    return f"{sec['tasks']}x{report['runs']}" + ("" if done == total else f" ({done} done)")
 
 
 def report_of(run_dir) -> dict[str, Any]:

@@ -133,7 +133,8 @@ class PlayServer:
         its episode is over, as a model sees no replay before its next decision."""
         if self.session.episode_over(task, run):
             return None
-        return "this task is still being played: its replays open once it is over (a model sees none before its next decision)"
+        return ("this task is still being played: its replays open once it is over (a model sees none before its "
+                "next decision)")
 
 
 def sse(event: str, payload: Any) -> bytes:
