@@ -24,6 +24,13 @@ SEED_MIN, SEED_MAX = -(2**63), 2**63 - 1  # a 64-bit integer, as datasets and Nu
 PromptSet = Literal["paper", "before-parity"]
 PROMPTS = "paper"
 
+HUMAN_PREFIX = "human:"  # a person's run (`deepphy play`) has the model `human:NAME`
+
+
+def is_human(model: str) -> bool:
+    """Whether a run's model is a person: its decision times are a person's, not a model's latency."""
+    return model.startswith(HUMAN_PREFIX)
+
 
 AGENT_ENTRY = r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$"
 AGENT_NAME_MAX = 120  # an agent's model name names suite directories: kept well below a file name's 255 bytes

@@ -72,6 +72,45 @@ def test_view_numbers_are_the_report(run_dir):
     assert p["attempts"] == len(read_records(run_dir)) and p["attempts_per_s"] > 0
 
 
+def test_a_run_in_progress_shows_rates_over_its_finished_episodes(run_dir, tmp_path):
+    """While episodes are unfinished, the view's rates (card, curve, table) are the report over
+    the finished episodes alone, marked partial with their count; `report` stays the whole one."""
+    from deepphy.metrics.report import build_report
+
+    copy = tmp_path / "copy"
+    copy_run(run_dir, copy, lines=9)
+    source = loaded(copy)
+    view = source.view()
+    records = read_records(copy)
+    config = read_config(copy)
+    partial = build_report(config, source.tasks, records, source.k_max, finished_only=True)
+    finished = partial["overall"]["finished"]
+    assert view["report"] == report_of(copy) and view["partial"] == {"finished": finished, "total": 12}
+    assert 0 < finished < 12 and view["curve"]["mean"] == partial["overall"]["mean"]["success_at"]
+    assert view["solved_rate"] == partial["overall"]["mean"]["success_at"][-1]
+    assert view["table"]["rows"] == table([partial])[1] and view["n"] == f"6x2 ({finished} done)"
+    assert loaded(run_dir).view()["partial"] is None  # a finished run: the whole report
+
+
+def test_the_episode_list_has_every_episode_with_its_outcome(run_dir):
+    source = loaded(run_dir)
+    data = source.samples()
+    rows = [dict(zip(data["columns"], r)) for r in data["rows"]]
+    records = read_records(run_dir)
+    episodes: dict = {}
+    for r in records:
+        episodes.setdefault((r.task, r.run), []).append(r)
+    assert [(r["task"], r["run"]) for r in rows] == sorted(episodes, key=lambda k: (source.task_index[k[0]], k[1]))
+    for row in rows:
+        mine = episodes[(row["task"], row["run"])]
+        assert row["state"] == ("solved" if any(r.success for r in mine) else "failed")
+        assert row["attempts"] == len(mine) and row["decisions"] == sum(len(r.steps) for r in mine)
+        assert row["invalid"] == sum(r.invalid for r in mine)
+        assert row["seconds"] == pytest.approx(sum(sum(r.timing.decision_s) for r in mine), abs=1e-3)
+        assert mine[-1].feedback in row["words"]
+    assert data["human"] is False and data["k_max"] == 10
+
+
 def test_single_attempt_runs_get_a_per_decision_curve(tmp_path):
     kin = loaded(synthetic_run(tmp_path / "kin", limit=6, max_steps=6))
     report = kin.report()

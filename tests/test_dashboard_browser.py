@@ -36,7 +36,10 @@ pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"needs Debi
 
 @pytest.fixture(scope="module")
 def runs(ray_cluster, tmp_path_factory):
-    return mock_run(tmp_path_factory), mock_run(tmp_path_factory, fmt="wm")
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1) as pool:  # a thread of its own: Playwright's sync API may hold this one's loop
+        return pool.submit(lambda: (mock_run(tmp_path_factory), mock_run(tmp_path_factory, fmt="wm"))).result()
 
 
 @pytest.fixture(scope="module")
@@ -149,7 +152,7 @@ def assert_page_shows(page, run_dir):
     assert points == [[k + 1, v] for k, v in enumerate(mean)]
     page.select_option("#run-select", run_id)
     page.wait_for_selector(f'table.report[data-run="{run_id}"]')
-    cells = page.eval_on_selector_all("table.report tr", "rows => rows.map(r => [...r.children].map(c => c.textContent))")
+    cells = page.eval_on_selector_all("#table table.report tr", "rows => rows.map(r => [...r.children].map(c => c.textContent))")
     header, rows = table([report])
     assert cells == [header, *rows]
 
@@ -235,6 +238,18 @@ def test_records_appended_to_a_run_appear_without_reload(runs, serve, open_page,
         cell = page.get_attribute(f'#grid .cell[data-task="{record["task"]}"][data-r="{record["run"]}"]', "data-attempts")
         assert int(cell) == record["attempt"]  # the grid follows too
     print(f"page update delay after an appended record: {', '.join(f'{d * 1000:.0f} ms' for d in delays)}")
+    # a run in progress: every rate is over its finished episodes, marked partial with their count
+    from deepphy.dashboard.source import RunSource
+
+    source = RunSource(copy)
+    source.poll()
+    partial = source.partial_report(source.report())
+    done = partial["overall"]["finished"]
+    page.wait_for_function(f"""() => {{ const n = document.querySelector('.card[data-run="{run_id}"] [data-field=partial]');
+        return n && n.textContent.includes('over the {done} of 12 episodes finished'); }}""", timeout=UPDATE_LIMIT_S * 1000)
+    points = page.eval_on_selector_all(f'svg g[data-run="{run_id}"] circle', "cs => cs.map(c => Number(c.dataset.value))")
+    assert points == partial["overall"]["mean"]["success_at"]
+    assert "partial" in page.text_content(f'.chart-legend span[data-run="{run_id}"]')
     assert page.evaluate("window.__notReloaded") is True
     page.screenshot(path=str(screenshots / "dashboard_live.png"), full_page=True)
     append(copy, log[26:])
@@ -366,7 +381,8 @@ def test_leaderboard_of_a_suite_root_follows_its_runs(serve, open_page, screensh
     page.wait_for_function("rows => JSON.stringify([...document.querySelectorAll('table.leaderboard tbody tr')]"
                            ".map(r => [...r.children].map(c => c.textContent))) === JSON.stringify(rows)", arg=expected)
     gpt = next(r for r in expected if r[0] == "gpt-4o VLA")
-    assert gpt[1] == "unfinished 0/8" and gpt[3].startswith("unfinished ")  # Angry Birds not started; I-PHYRE cut
+    # Angry Birds not started; I-PHYRE cut; each with its n
+    assert gpt[1:3] == ["4x2 (0 done)", "unfinished 0/8"] and gpt[5].startswith("unfinished ") and gpt[4].startswith("4x2 (")
     header = page.eval_on_selector_all("table.leaderboard thead tr:first-child th[colspan]", "ths => ths.map(t => t.textContent)")
     assert header == ["Angry Birds", "I-PHYRE"]
     page.screenshot(path=str(screenshots / "dashboard_leaderboard_unfinished.png"), full_page=True)
@@ -380,3 +396,95 @@ def test_leaderboard_of_a_suite_root_follows_its_runs(serve, open_page, screensh
     assert float(page.get_attribute(cell, "data-mean")) == report_of(full)["overall"]["mean"]["success_at"][-1]
     assert page.evaluate("window.__notReloaded") is True
     page.screenshot(path=str(screenshots / "dashboard_leaderboard.png"), full_page=True)
+
+
+def test_episode_browser_filters_searches_and_steps_through_the_list(runs, serve, open_page, screenshots):
+    """The episodes of a run as a list to filter (outcome, invalid reason, group, attempts) and
+    search; an episode opened from it steps to the previous and next of the filtered list
+    (buttons and arrow keys), puts another run of the same task beside it, and enlarges an
+    image on a click."""
+    run_dir = runs[0]
+    records = read_records(run_dir)
+    server = serve(str(run_dir))
+    page = open_page(server.url)
+    page.wait_for_selector("#samples tr.sample")
+    listed = lambda: page.eval_on_selector_all("#samples tr.sample", "rs => rs.map(r => [r.dataset.task, Number(r.dataset.r)])")  # noqa: E731
+    episodes = {}
+    for r in records:
+        episodes.setdefault((r.task, r.run), []).append(r)
+    order = [(t, run) for t in IPHYRE_TASKS for run in range(2)]
+    listed_all = listed()
+    assert listed_all == [list(k) for k in order] and page.text_content("#f-count") == "12 of 12 episodes"
+
+    solved = [list(k) for k in order if any(r.success for r in episodes[k])]
+    page.select_option("#f-outcome", "solved")
+    assert listed() == solved and 0 < len(solved) < 12
+    page.select_option("#f-outcome", "failed")
+    assert listed() == [list(k) for k in order if list(k) not in solved]
+    page.select_option("#f-outcome", "")
+    groups = {r.task: r.group for r in records}
+    page.select_option("#f-group", groups["hinder"])
+    assert listed() == [list(k) for k in order if groups[k[0]] == groups["hinder"]] != listed_all
+    page.select_option("#f-group", "")
+    page.select_option("#f-attempts", "1")
+    assert listed() == [list(k) for k in order if len(episodes[k]) == 1]
+    page.select_option("#f-attempts", "")
+    page.select_option("#f-reason", "*")
+    assert listed() == [list(k) for k in order if any(r.invalid_reason for r in episodes[k])]
+    page.select_option("#f-reason", "")
+    page.fill("#f-search", "hinder")
+    assert listed() == [list(k) for k in order if "hinder" in k[0]]
+
+    # open the first of the filtered list, then next, next by key, previous
+    page.fill("#f-search", "")
+    page.select_option("#f-outcome", "solved")
+    page.click("#samples tr.sample >> nth=0")
+    page.wait_for_selector("#episode .timeline")
+    title = lambda: page.text_content("#episode-title")  # noqa: E731
+    assert title().startswith(f"{solved[0][0]} · run {solved[0][1]} ·") and page.text_content("#episode-place") == f"1 of {len(solved)}"
+    assert page.is_disabled("#episode-prev")
+    page.click("#episode-next")
+    page.wait_for_function("t => document.querySelector('#episode-title').textContent.startsWith(t)", arg=f"{solved[1][0]} · run {solved[1][1]} ·")
+    page.keyboard.press("ArrowRight")
+    page.wait_for_function("t => document.querySelector('#episode-title').textContent.startsWith(t)", arg=f"{solved[2][0]} · run {solved[2][1]} ·")
+    assert page.text_content("#episode-place") == f"3 of {len(solved)}"
+    page.click("#episode-prev")
+    page.wait_for_function("t => document.querySelector('#episode-title').textContent.startsWith(t)", arg=f"{solved[1][0]} · run {solved[1][1]} ·")
+    # the decision timeline: a bar per decision, with the model's time to answer
+    task, r = solved[1]
+    bars = page.eval_on_selector_all("#episode .tl-bar", "bs => bs.map(b => Number(b.dataset.seconds))")
+    assert bars == [s for a in sorted(episodes[(task, r)], key=lambda a: a.attempt) for s in a.timing.decision_s]
+    # the other run of the task beside it
+    page.select_option("#episode-compare", f"{run_id(run_dir.resolve())}|{1 - r}")
+    page.wait_for_selector("#episode .compare-grid .side >> nth=1")
+    assert page.text_content("#episode .compare-grid .side:nth-child(2) .side-title").endswith(f"run {1 - r}")
+    # an image, enlarged on a click
+    page.eval_on_selector("#episode .side details.attempt", "d => { d.open = true; }")
+    img = page.locator("#episode .side img.zoomable").first
+    src = img.get_attribute("src")
+    img.click()
+    assert page.is_visible("#lightbox") and page.get_attribute("#lightbox img", "src") == src
+    page.screenshot(path=str(screenshots / "dashboard_browser_lightbox.png"))
+    page.keyboard.press("Escape")
+    assert page.is_hidden("#lightbox") and page.is_visible("#episode")
+    page.screenshot(path=str(screenshots / "dashboard_browser_compare.png"))
+
+
+@pytest.mark.parametrize("width", [390, 1280])
+def test_the_dashboard_holds_at_a_phones_and_a_laptops_width(runs, serve, open_page, browser, screenshots, width):
+    """No part of the page is wider than the screen (tables scroll in their own boxes), the
+    episode view included."""
+    server = serve(*map(str, runs))
+    page = open_page(server.url)
+    page.set_viewport_size({"width": width, "height": 844})
+    page.wait_for_selector("#samples tr.sample")
+    page.wait_for_function("document.querySelectorAll('.chart svg').length > 0")
+    assert page.evaluate("document.documentElement.scrollWidth") <= width
+    page.screenshot(path=str(screenshots / f"dashboard_{width}.png"), full_page=True)
+    page.click("#samples tr.sample >> nth=0")
+    page.wait_for_selector("#episode .timeline")
+    page.select_option("#episode-compare", index=1)
+    page.wait_for_selector("#episode .compare-grid")
+    assert page.evaluate("document.documentElement.scrollWidth") <= width
+    assert page.evaluate("document.querySelector('#episode .modal-box').scrollWidth") <= width
+    page.screenshot(path=str(screenshots / f"dashboard_episode_{width}.png"))

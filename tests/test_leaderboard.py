@@ -42,7 +42,8 @@ def test_rows_are_settings_and_columns_the_environments_headlines(root):
     assert [board.row_label(i) for i in range(len(board.rows))] == ["gpt-4o VLA", "mock VLA", "mock WM"]
     assert [g.title for g in board.groups] == ["Angry Birds", "Kinetix", "Kinetix annotate=False", "PHYRE-B"]
     assert [[c.header for c in g.columns] for g in board.groups] == [
-        ["Succ", "Stars"], ["S", "M", "L", "Succ"], ["S", "M", "L", "Succ"], ["Succ@10", "Pass@5", "AUCCESS"]]
+        ["n", "Succ", "Stars"], ["n", "S", "M", "L", "Succ"], ["n", "S", "M", "L", "Succ"],
+        ["n", "Succ@10", "Pass@5", "AUCCESS"]]
     # each figure is the report's of that directory
     for (r, g), cells in board.cells.items():
         report = report_of(cells[0].run_dir)
@@ -54,10 +55,13 @@ def test_rows_are_settings_and_columns_the_environments_headlines(root):
                     "Pass@5": report["overall"]["pass_at"][4] if report["runs"] >= 5 else None,
                     **{size: sec["mean"]["success_at"][0] for size, sec in report.get("groups", {}).items()}}
         for column, cell in zip(board.groups[g].columns, cells):
+            if column.header == "n":  # the row's tasks x runs, in words
+                assert cell.text == f"{report['overall']['tasks']}x{report['runs']}" and cell.mean is None
+                continue
             assert cell.mean == pytest.approx(expected[column.header]), (cells[0].run_dir, column.header)
     # a setting without a run of an environment shows "-"
     wm = board.rows.index(("mock", "wm"))
-    assert [c.text for c in board.row_cells(wm)][:2] == ["-", "-"]
+    assert [c.text for c in board.row_cells(wm)][:3] == ["-", "-", "-"]
 
 
 def test_the_best_of_each_column_is_marked(root):
@@ -83,9 +87,29 @@ def test_unfinished_runs_are_marked_and_never_averaged_or_best(root, tmp_path):
     board = _board(paths)
     cut = board.cells[(1, 0)]
     done = sum(x["tasks"] - x["unfinished"] for x in report_of(tmp_path / "cut")["overall"]["per_run"])
-    assert cut[0].unfinished == f"{done}/12" and cut[0].text == f"unfinished {done}/12"
+    assert cut[1].unfinished == f"{done}/12" and cut[1].text == f"unfinished {done}/12"
+    assert cut[0].text == f"6x2 ({done} done)"  # n: tasks x runs, and the episodes done
     assert all(c.mean is None and not c.best for c in cut)
     assert not any(c.best for c in board.cells[(0, 0)])  # one finished row: nothing to compare
+
+
+def test_rows_of_other_tasks_or_runs_are_not_ranked_against_the_others(root, tmp_path):
+    """A run of one task (a person's, say) is never the best against runs of six: the column
+    is ranked among the rows of one task set, runs and attempts (those of the most rows), the
+    other rows are marked and named in a note, and every row states its n."""
+    paths = [root / model / "phyre" / "vla" for model in ("mock", "gpt-4o")]
+    report = report_of(paths[0])
+    one = synthetic_run(tmp_path / "one", env="phyre", limit=1, max_steps=1,
+                        model="human:ana", p_success=1.0, runs=1)
+    board = _board([*paths, one])
+    rows = {board.row_label(i): board.row_cells(i) for i in range(len(board.rows))}
+    succ = [c.header for c in board.groups[0].columns].index("Succ@10")
+    assert rows["human:ana VLA"][succ].mean == 1.0 and not rows["human:ana VLA"][succ].best
+    assert rows["human:ana VLA"][succ].unranked and rows["human:ana VLA"][0].text == "1x1"
+    assert any(rows[m][succ].best for m in ("mock VLA", "gpt-4o VLA"))  # the comparable rows are still ranked
+    assert not any(rows[m][succ].unranked for m in ("mock VLA", "gpt-4o VLA"))
+    assert any("not ranked against the other rows" in n and "human:ana VLA (n=1x1)" in n for n in board.notes)
+    assert "100.0\u2020" in render_text(board) and report["overall"]["tasks"] == 6
 
 
 def test_two_runs_of_one_cell_are_refused(root, tmp_path):
@@ -97,15 +121,16 @@ def test_two_runs_of_one_cell_are_refused(root, tmp_path):
 def test_cli_takes_a_root_and_plain_run_directories_of_different_environments(root, capsys):
     assert main(["leaderboard", str(root), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
-    assert len(data["rows"]) == 3 and len(data["columns"]) == 13
+    assert len(data["rows"]) == 3 and len(data["columns"]) == 17
     # plain run directories of different environments: `report` refuses them, the leaderboard takes them
     dirs = [str(root / "mock" / "phyre" / "vla"), str(root / "gpt-4o" / "angrybirds" / "vla")]
     assert main(["report", *dirs]) == 2
     assert "one environment" in capsys.readouterr().err
     assert main(["leaderboard", *dirs, "--csv"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0] == "setting,Angry Birds Succ,Angry Birds Stars,PHYRE-B Succ@10,PHYRE-B Pass@5,PHYRE-B AUCCESS"
-    assert lines[1].startswith("mock VLA,-,-,") and lines[2].startswith("gpt-4o VLA,")
+    assert lines[0] == ("setting,Angry Birds n,Angry Birds Succ,Angry Birds Stars,PHYRE-B n,PHYRE-B Succ@10,"
+                        "PHYRE-B Pass@5,PHYRE-B AUCCESS")
+    assert lines[1].startswith("mock VLA,-,-,-,6x2,") and lines[2].startswith("gpt-4o VLA,6x2,")
     assert render_csv(_board(dirs)).splitlines()[0] == lines[0]
 
 

@@ -325,3 +325,43 @@ def test_text_table_stays_within_its_width_with_every_column(tmp_path):
     assert max(len(line) for line in text.splitlines()) <= TEXT_WIDTH
     for h in header:  # every column is in one of the blocks
         assert h in text
+
+
+def test_a_persons_time_is_reported_as_human_time_median_and_total():
+    """A person's decision times (`timing.decision_s`) per decision and per finished task,
+    median and in total, in the report and its table, labelled as a person's; a model's run
+    has none (its latency is not a person's time)."""
+    from deepphy.runs.records import Timing
+
+    tasks = [Task(env="iphyre", id=t) for t in "abc"]
+    records = [
+        *(r.model_copy(update={"model": "human:ana", "timing": Timing(decision_s=[s])})
+          for r, s in zip(episode_records("a", 0, 2), [10.0, 20.0])),  # task a: 30 s over two attempts
+        rec("b", 0, 1, success=True).model_copy(update={"model": "human:ana", "timing": Timing(decision_s=[4.0])}),
+        rec("c", 0, 1).model_copy(update={"model": "human:ana", "timing": Timing(decision_s=[100.0])}),  # unfinished
+    ]
+    person = build_report(RunConfig(model="human:ana", runs=1), tasks, records, k_max=10)
+    assert person["human_time"] == {"decisions": 4, "tasks": 2, "median_decision_s": 15.0, "median_task_s": 17.0,
+                                    "total_s": 134.0}
+    model = build_report(RunConfig(runs=1), tasks, [r.model_copy(update={"model": "mock"}) for r in records], k_max=10)
+    assert "human_time" not in model
+    header, rows = table([person, model])
+    at = header.index("Human s/dec")
+    assert header[at:at + 3] == ["Human s/dec", "Human s/task", "Human min"]
+    assert rows[0][at:at + 3] == ["15.0", "17.0", "2.2"] and rows[1][at:at + 3] == ["-", "-", "-"]
+    assert "a person's time to decide" in render_text([person, model])
+
+
+def test_a_partial_report_counts_finished_episodes_only_and_says_so():
+    """A run in progress: the report counts an unfinished episode as unsolved and says the run
+    is partial; the finished-only report (live views) leaves it out, and n says how many are done."""
+    tasks = [Task(env="iphyre", id=t) for t in "abcd"]
+    records = episode_records("a", 0, 1) + episode_records("b", 0, None) + [rec("c", 0, 1), rec("c", 0, 2)]
+    full = build_report(RunConfig(runs=1), tasks, records, k_max=10)
+    partial = build_report(RunConfig(runs=1), tasks, records, k_max=10, finished_only=True)
+    assert full["overall"]["mean"]["success_at"][9] == 0.25  # 1 of 4 tasks, c and d counted as unsolved
+    assert partial["overall"]["mean"]["success_at"][9] == 0.5  # 1 of the 2 finished (a solved, b failed)
+    assert partial["partial"] and full["overall"]["finished"] == partial["overall"]["finished"] == 2
+    assert table([full])[1][0][1] == "4x1 (2 done)"
+    assert "partial, 2 of 4 episodes finished" in render_text(full)
+    assert "over the finished episodes only" in render_text(partial)

@@ -173,16 +173,19 @@ def test_the_server_takes_answers_from_its_page_only(tmp_path):
                 await asyncio.sleep(0.005)
             state = await (await client.get("/api/state")).json()
             assert state["decision"]["step"] == 2 and state["last"]["text"] == "I push(1)"
-            assert state["last"]["feedback"] and state["last"]["frames"]
-            frame = await client.get(f"/api/last/{state['last']['id']}/0.png")
-            assert frame.status == 200 and (await frame.read()).startswith(b"\x89PNG")
+            # what the decision did reaches the page as it reaches a model: in the next prompt only
+            assert set(state["last"]) == {"id", "attempt", "step", "text", "attempt_over", "episode"}
+            assert "flag-03" not in json.dumps(state["last"]) and "flag-03" not in json.dumps(state["recent"])
+            assert (await client.get(f"/api/last/{state['last']['id']}/0.png")).status == 404
+            # no replay of a task still in play (a model sees none before its next decision)
+            early = await client.get(f"/api/runs/{state['run_id']}/replay?task=flag-03&run=0&attempt=1")
+            assert early.status == 403 and "still being played" in await early.text()
             # The page may still be loading the answered decision's pictures: they stay served.
             answered = await client.get(image["image"])
             assert answered.status == 200 and await answered.read() == png
             unknown = [await client.get(image["image"].replace("/0.png", "/-1.png")),
-                       await client.get(image["image"].replace("/0.png", "/9.png")),
-                       await client.get(f"/api/last/{state['last']['id'] + 1}/0.png")]
-            assert [r.status for r in unknown] == [404, 404, 404]
+                       await client.get(image["image"].replace("/0.png", "/9.png"))]
+            assert [r.status for r in unknown] == [404, 404]
         play.cancel()
 
     try:
@@ -305,6 +308,8 @@ FILMED = {  # environment, task, an action: the environments whose steps are fil
     "iphyre": ("support", '[{"time": 1.0, "index": 0}]'),
     "kinetix": ("s_h3_point_the_thruster", "[1, 1]"),
     "pooltool": ("rack_000", "Speed: High, Strikespot: top-left"),
+    "angrybirds": ("s1_l01", "shoot(angle=40, power=0.9)"),
+    "cuttherope": ("b1_l01", "sleep(2)"),
 }
 
 

@@ -24,8 +24,9 @@ import pytest
 from conftest import data_file
 from deepphy.config import RunConfig
 from deepphy.envs import ActionSpace, get_spec
+from deepphy.envs.base import FILM_FPS
 from deepphy.play.human import JOURNAL
-from deepphy.runs.store import read_records
+from deepphy.runs.store import episode_prompts, read_records, stored_image
 from play_support import PlayThread, model_run, person_run, same_records
 from test_dashboard_browser import CHROMIUM, browser, screenshots  # noqa: F401 (fixtures)
 
@@ -302,6 +303,21 @@ def test_angrybirds_level_played_with_its_stored_plan(play, open_page, screensho
     assert [s.action_text for s in record.steps] == written
     check_equal_to_model_replies(config, tmp_path / "person", tmp_path, written)
 
+    # the level over, its replay: every shot filmed from the simulator, FILM_FPS per simulated second
+    with page.context.expect_page() as opened:
+        page.click("#last a.replay")
+    replay = opened.value
+    replay.wait_for_selector("#player:not([hidden])", timeout=120_000)
+    simulated = sum(s.info["sim_time"] for s in record.steps)
+    pictures = int(replay.get_attribute("#player", "data-pictures"))
+    assert pictures >= FILM_FPS * simulated  # not the key frames: 2 a shot
+    assert "equals the record" in replay.text_content("#note")
+    replay.wait_for_function("() => Number(document.querySelector('#player').dataset.frame) >= 12")  # it plays
+    assert re.search(r"t = \d+\.\d\d s of shot 1", replay.text_content("#caption"))
+    replay.wait_for_function("() => { const i = document.querySelector('#picture'); return i.complete && i.naturalWidth > 0; }")
+    replay.screenshot(path=str(screenshots / "play_replay_angrybirds.png"))
+    replay.close()
+
 
 def test_cuttherope_level_played_with_its_stored_plan(play, open_page, screenshots, tmp_path):
     level, plan = cuttherope_plan()
@@ -379,6 +395,123 @@ class PlayProcess:
         self.proc.wait(30)
 
 
+# -- parity: the page shows a person what the model is shown, no more ----------------------------
+
+# What the page shows of the decision waiting: every part of the prompt in the prompt's order
+# (texts, and images by the sha256 of the bytes the page loaded), the system text, and every
+# picture anywhere on the page (none may be beyond the prompt's).
+PAGE_PROMPT = """async () => {
+  const sha = async (url) => { const bytes = await (await fetch(url)).arrayBuffer();
+    return [...new Uint8Array(await crypto.subtle.digest("SHA-256", bytes))].map(b => b.toString(16).padStart(2, "0")).join(""); };
+  const parts = [];
+  for (const node of document.querySelectorAll("#decision [data-part]")) {
+    parts.push([Number(node.dataset.part), node.tagName === "IMG" ? {image: await sha(node.src)} : {text: node.textContent}]);
+  }
+  const shown = [...document.images].filter(i => i.getAttribute("src") && i.offsetParent !== null && !i.closest("[hidden]"));
+  return {key: state.decision.key, system: document.querySelector("#system").textContent, parts,
+          images: await Promise.all(shown.map(i => sha(i.src)))};
+}"""
+
+
+def parity_case(env: str) -> tuple[RunConfig, object, list[str]]:
+    """A play of `env` with history in its prompts: two attempts where there are several,
+    several decisions where an attempt has them."""
+    if env == "phyre":
+        task, solution = phyre_solution()
+        return RunConfig(env="phyre", model="human:tester", runs=1, tasks=[task], max_attempts=2), drive_phyre, \
+            ["Cell: 1, Radius: 1", solution]
+    if env == "iphyre":
+        return RunConfig(env="iphyre", model="human:tester", runs=1, tasks=["support"], max_attempts=2), drive_iphyre, \
+            ['[{"time": 0.5, "index": 0}]', '[{"time": 2.0, "index": 1}]']
+    if env == "angrybirds":
+        level, plan = angrybirds_plan()
+        return RunConfig(env="angrybirds", model="human:tester", runs=1, tasks=[level]), drive_angrybirds, plan
+    if env == "cuttherope":
+        level, plan = cuttherope_plan()
+        return RunConfig(env="cuttherope", model="human:tester", runs=1, tasks=[level]), drive_cuttherope, plan
+    if env == "pooltool":
+        shots = [POOL_SHOTS[k % len(POOL_SHOTS)] for k in range(get_spec("pooltool").max_steps)]
+        return RunConfig(env="pooltool", model="human:tester", runs=1, tasks=["rack_000"]), drive_pooltool, shots
+    level = kinetix_level()
+    cls = get_spec("kinetix").load()
+    space = cls().reset(next(t for t in cls.tasks(cls.Options()) if t.id == level)).action_space
+    vector = json.dumps([1] * space.num_motors + [1] * space.num_thrusters)
+    return RunConfig(env="kinetix", model="human:tester", runs=1, tasks=[level]), drive_kinetix, \
+        [vector] * get_spec("kinetix").max_steps
+
+
+@pytest.mark.parametrize("env", [pytest.param(e, marks=[pytest.mark.slow] if e in ("kinetix", "pooltool") else [])
+                                 for e in ("phyre", "iphyre", "angrybirds", "cuttherope", "pooltool", "kinetix")])
+def test_the_page_shows_a_person_what_the_model_is_shown(env, play, open_page, tmp_path):
+    """Before every decision the page shows exactly the prompt the model would get: its system
+    text, and every part of its user message in order (images compared by the sha256 of the
+    bytes the page shows with the run directory's stored prompt), and no picture beyond them
+    (no key frame of a decision before the next prompt has it, as a model gets it)."""
+    config, drive, texts = parity_case(env)
+    server = play(config, tmp_path / "person")
+    page = open_page(server.url)
+    shown: dict[str, dict] = {}
+    wait_for_decision(page)
+    while page.get_attribute("#status", "data-state") != "finished":
+        assert len(shown) < len(texts), f"the play goes on after the {len(texts)} actions given"
+        seen = page.evaluate(PAGE_PROMPT)
+        shown[seen["key"]] = seen
+        set_action(page, drive, texts[len(shown) - 1])
+        act(page)
+    records = read_records(tmp_path / "person")
+    decisions = [(r, s) for r in records for s in r.steps]
+    assert len(decisions) == len(shown) and len(shown) >= 2
+    prompts = []  # (where, what the page showed, the stored system text, the stored user parts)
+    for record, step in decisions:
+        logged = episode_prompts(tmp_path / "person", record.task, record.run)
+        [seen] = [v for k, v in shown.items() if k == f"{record.task}|{record.run}|{record.attempt}|{step.step}|{step.prompt}"]
+        system, user = logged[step.prompt]
+        stored = [{"image": stored_image(p)[0]} if stored_image(p) else {"text": p} for p in user["content"]]
+        prompts.append((f"attempt {record.attempt} decision {step.step}", seen, system, stored))
+    extra = {where: len(set(seen["images"]) - {p["image"] for p in stored if "image" in p})
+             for where, seen, _, stored in prompts}
+    assert not any(extra.values()), f"pictures beyond the prompt's on the page: {extra}"
+    for where, seen, system, stored in prompts:
+        assert sorted(seen["images"]) == sorted(p["image"] for p in stored if "image" in p), where
+        assert seen["system"] == "\n\n".join(system["content"]), where
+        assert [p for _, p in sorted(seen["parts"], key=lambda x: x[0])] == stored, where
+    sizes = [len(v["parts"]) for v in shown.values()]
+    # later prompts carry history (earlier decisions or attempts), and the page shows it;
+    # Pooltool's prompt is the table as it is now, with no history (as the paper's)
+    assert max(sizes) > sizes[0] or env == "pooltool"
+
+
+@pytest.mark.parametrize("width", [390, 1280])
+def test_the_play_page_holds_at_a_phones_and_a_laptops_width(play, open_page, screenshots, tmp_path, width):
+    """No horizontal scroll at 390 px or 1280 px; the controls stay in view on a laptop when the
+    history has grown (beside the observation, sticky), and come before the history on a
+    phone; no action is written before the person sets one (a stray Act spends nothing)."""
+    config = RunConfig(env="iphyre", model="human:tester", runs=1, tasks=["support"], max_attempts=2)
+    server = play(config, tmp_path / "person")
+    page = open_page(server.url)
+    page.set_viewport_size({"width": width, "height": 844})
+    wait_for_decision(page)
+    assert page.input_value("#action") == "" and page.is_disabled("#submit")  # the empty plan is not pre-filled
+    set_action(page, drive_iphyre, '[{"time": 0.5, "index": 0}]')
+    act(page)  # attempt 2: the history holds attempt 1 with its pictures
+    page.wait_for_selector("#history:not([hidden]) img")
+    assert page.input_value("#action") == "" and page.is_disabled("#submit")
+    page.evaluate("() => window.scrollTo(0, 0)")
+    assert page.evaluate("document.documentElement.scrollWidth") <= width
+    box = page.locator("#submit").bounding_box()
+    controls, history = page.locator("#controls").bounding_box(), page.locator("#history").bounding_box()
+    if width >= 1000:
+        assert box["y"] + box["height"] <= 844  # in view without scrolling
+        page.evaluate("() => window.scrollTo(0, document.body.scrollHeight)")  # and still there at the page's end
+        box = page.locator("#submit").bounding_box()
+        assert 0 <= box["y"] and box["y"] + box["height"] <= 844
+    else:
+        assert controls["y"] < history["y"]  # the history does not push the controls down
+    page.click("[data-control=no-removal]")  # an empty plan is a choice of its own
+    page.wait_for_function("() => document.querySelector('#check').textContent === '✓ []'")
+    screenshot(page, screenshots / f"play_iphyre_{width}.png")
+
+
 def test_closing_the_page_or_stopping_the_server_mid_level_loses_nothing(open_page, tmp_path):
     level, plan = cuttherope_plan()
     assert len(plan) >= 3
@@ -394,7 +527,7 @@ def test_closing_the_page_or_stopping_the_server_mid_level_loses_nothing(open_pa
         page = open_page(server.url)
         wait_for_decision(page)
         assert decision(page)["key"] == waiting["key"] and waiting["step"] == 2  # the same decision waits
-        assert page.text_content("#last h2").endswith(written[0])  # and what the first one did is shown
+        assert page.text_content("#last code") == written[0]  # and the action the first one took is named
         written.append(set_action(page, drive_cuttherope, plan[1]))
         act(page)
         third = decision(page)["key"]
@@ -441,11 +574,23 @@ def test_dashboard_shows_a_persons_run_beside_a_models_and_replays_both(ray_clus
         page.wait_for_function("document.querySelectorAll('.card').length === 2")
         assert "human:tester" in page.text_content(f'.card[data-run="{run_id_of(page, person)}"]')
         assert card_values(page, run_id_of(page, person))["attempts"] == str(len(records))
+        # the person's time to decide, labelled as a person's: median per decision and per task, and in all
+        from deepphy.metrics.report import report_of
+
+        human = report_of(person)["human_time"]
+        values = card_values(page, run_id_of(page, person))
+        assert float(values["human_median_decision_s"]) == pytest.approx(human["median_decision_s"])
+        assert float(values["human_median_task_s"]) == pytest.approx(human["median_task_s"])
+        assert float(values["human_total_s"]) == pytest.approx(human["total_s"])
+        assert "human_total_s" not in card_values(page, run_id_of(page, model))  # a model's latency is no person's time
         for run_dir, name in ((model, "model"), (person, "person")):
             page.select_option("#run-select", run_id_of(page, run_dir))
             task = read_records(run_dir)[0].task
             page.click(f'#grid .cell[data-task="{task}"][data-r="0"]')
             page.wait_for_selector(f'#episode details.attempt[data-attempt="1"] a.replay')
+            page.eval_on_selector('#episode details.attempt[data-attempt="1"]', "d => { d.open = true; }")
+            line = page.text_content('#episode details.attempt[data-attempt="1"] .attempt-body > .field')
+            assert ("human time to decide" in line) == (name == "person") and ("model" in line) == (name == "model")
             with page.context.expect_page() as opened:
                 page.click('#episode details.attempt[data-attempt="1"] a.replay')
             replay = opened.value

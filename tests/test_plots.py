@@ -94,7 +94,7 @@ def test_vla_wm_scatter_pairs_formats_at_pass_at_k(dirs):
     assert list(ax.collections[0].get_offsets()[0]) == pytest.approx([100 * p["vla"], 100 * p["wm"]])
     one = draw_vla_wm_scatter(_axes(), reports, k=1)
     assert one["points"][0]["vla"] == pytest.approx(reports[0]["overall"]["mean"]["success_at"][9]) and not one["notes"]
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["I-PHYRE"]  # the environment's title
+    assert [t.get_text() for t in ax.figure.legends[0].get_texts()] == ["I-PHYRE"]  # the environment's title
 
 
 def test_annotation_dumbbell_by_size(dirs):
@@ -137,20 +137,68 @@ def test_success_by_shot_has_ticks_at_the_checkpoints(dirs):
 
 
 def test_star_bars(dirs):
+    """A bar of all the levels per setting: the share not won, then won with 1, 2 and 3 stars
+    (0 where any were), the report's mean over runs; the shares add up to 100 %."""
     stars = report_of(dirs["stars"])
     ax = _axes()
     drawn = draw_star_bars(ax, [stars])
     st = stars["overall"]["mean"]["stars"]
+    tasks = stars["overall"]["tasks"]
     assert drawn["levels_with"][0] == [st["levels_with"][k] for k in drawn["stars"]]
+    assert drawn["shares"][0] == pytest.approx([st["levels_with"][k] / tasks for k in drawn["stars"]])
     assert drawn["mean_all"][0] == st["mean_all"] and drawn["mean_completed"][0] == st["mean_completed"]
-    assert [p.get_height() for p in ax.patches] == drawn["levels_with"][0]
-    assert ax.get_ylim()[1] >= max(v + e for v, e in zip(drawn["levels_with"][0], drawn["std"][0]))
+    widths = [p.get_width() for p in ax.patches]
+    assert widths == pytest.approx([100 * drawn["not_won"][0], *(100 * x for x in drawn["shares"][0])])
+    assert sum(widths) == pytest.approx(100) and ax.get_xlim() == (0, 100)
+    assert [t.get_text() for t in ax.get_yticklabels()] == [f"mock VLA\n(n={tasks}x{stars['runs']})"]
+
+
+def test_success_against_attempts_is_the_reports_att_k(dirs):
+    from deepphy.plots import draw_success_by_attempt
+
+    reports = [report_of(dirs["vla"]), report_of(dirs["wm"])]
+    ax = _axes()
+    drawn = draw_success_by_attempt(ax, reports)
+    for series, r, line in zip(drawn["series"], reports, ax.get_lines()):
+        assert series["success"] == r["overall"]["mean"]["success_at"] and series["attempts"] == list(range(1, 11))
+        assert list(line.get_ydata()) == pytest.approx([100 * v for v in series["success"]])
+        assert series["n"] == f"6x2"
+    assert [t.get_text() for t in ax.figure.legends[0].get_texts()] == ["mock VLA (n=6x2)", "mock WM (n=6x2)"]
+
+
+def test_every_figure_fits_one_and_two_columns_with_readable_text(dirs):
+    """Every figure at 3.3 in (one column) and 7 in (two): no text under MIN_FONT_PT, none
+    outside the figure, and every setting's n written in it."""
+    from matplotlib.text import Text
+
+    from deepphy.plots import MIN_FONT_PT, WIDTHS, draw_figure
+
+    from deepphy.metrics.leaderboard import leaderboard
+
+    reports = [report_of(d) for d in dirs.values()]
+    board = leaderboard(reports, list(map(str, dirs.values())))
+    for stem, _, _, rs in [*figures_for(reports), ("leaderboard", None, None, reports)]:
+        for width in WIDTHS.values():
+            fig = draw_figure(stem, reports, width, board)
+            assert fig.get_figwidth() == width
+            texts = [t for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip()]
+            small = [(t.get_text(), t.get_fontsize()) for t in texts if t.get_fontsize() < MIN_FONT_PT]
+            assert not small, (stem, width, small)
+            drawn = fig.get_tightbbox(fig.canvas.get_renderer())  # inches: everything drawn, text included
+            assert drawn.x0 >= -0.02 and drawn.y0 >= -0.02 and drawn.x1 <= width + 0.02 \
+                and drawn.y1 <= fig.get_figheight() + 0.02, (stem, width, drawn)
+            words = "\n".join(t.get_text() for t in texts)
+            from deepphy.plots import vla_wm_pairs
+
+            shown = [r for pair in vla_wm_pairs(rs) for r in pair] if stem == "vla_vs_wm" else rs
+            n = [f"{r['overall']['tasks']}x{r['runs']}" for r in shown]
+            assert all(x in words for x in n), (stem, width)
 
 
 def test_which_figures_apply_is_read_from_the_reports(dirs):
     figures = figures_for([report_of(d) for d in dirs.values()])
     assert {stem for stem, *_ in figures} == {
-        "cumulative_iphyre", "by_group_iphyre", "vla_vs_wm", "by_decision_kinetix", "by_size_kinetix",
+        "cumulative_iphyre", "by_attempt_iphyre", "by_group_iphyre", "vla_vs_wm", "by_decision_kinetix", "by_size_kinetix",
         "annotate_kinetix", "by_shot_pooltool", "by_shot_angrybirds", "stars_angrybirds"}  # 8 levels: one scene
     titles = {stem: title for stem, title, *_ in figures}
     assert titles["cumulative_iphyre"].startswith("I-PHYRE: ") and titles["by_shot_angrybirds"].startswith("Angry Birds: ")
@@ -175,7 +223,8 @@ def test_plot_cli_writes_png_pdf_and_the_drawn_data(dirs, tmp_path, capsys):
 
 def test_plot_all_returns_the_files(dirs, tmp_path):
     written = plot_all([report_of(dirs["pooltool"])], tmp_path)
-    assert {p.name for p in written} == {"by_shot_pooltool.png", "by_shot_pooltool.pdf", "figures.json"}
+    assert {p.name for p in written} == {"by_shot_pooltool.png", "by_shot_pooltool.pdf", "by_shot_pooltool-1col.png",
+                                         "by_shot_pooltool-1col.pdf", "figures.json"}
 
 
 # -- LaTeX --------------------------------------------------------------------------------

@@ -108,9 +108,10 @@ def test_leaderboard_of_the_root_has_a_row_per_setting_and_a_group_per_environme
     board = json.loads(capsys.readouterr().out)
     assert [(r["model"], r["format"]) for r in board["rows"]] == [("mock", "vla"), ("mock", "wm")]
     assert [(c["title"], c["header"]) for c in board["columns"]] == [
-        ("I-PHYRE", "Succ@10"), ("I-PHYRE", "Pass@3"), ("PHYRE-B", "Succ@10"), ("PHYRE-B", "Pass@5"), ("PHYRE-B", "AUCCESS")]
+        ("I-PHYRE", "n"), ("I-PHYRE", "Succ@10"), ("I-PHYRE", "Pass@3"), ("PHYRE-B", "n"), ("PHYRE-B", "Succ@10"),
+        ("PHYRE-B", "Pass@5"), ("PHYRE-B", "AUCCESS")]
     phyre_vla = report_of(done / "mock/phyre/vla")["overall"]["mean"]
-    assert board["rows"][0]["cells"][2]["mean"] == phyre_vla["success_at"][9]
+    assert board["rows"][0]["cells"][4]["mean"] == phyre_vla["success_at"][9]
 
 
 def test_running_a_complete_suite_again_adds_nothing_and_starts_no_ray(done, monkeypatch):
@@ -193,7 +194,8 @@ def test_leaderboard_of_a_suite_shows_cells_not_started_as_unfinished(done, tmp_
     (root / MANIFEST).write_bytes((done / MANIFEST).read_bytes())  # the suite, no cell run yet
     assert main(["leaderboard", str(root), "--csv"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[1:3] == ["mock VLA,unfinished 0/2,,unfinished 0/2,,", "mock WM,unfinished 0/2,,unfinished 0/2,,"]
+    assert lines[1:3] == ["mock VLA,2x1 (0 done),unfinished 0/2,,2x1 (0 done),unfinished 0/2,,",
+                          "mock WM,2x1 (0 done),unfinished 0/2,,2x1 (0 done),unfinished 0/2,,"]
 
 
 def test_plot_of_a_suite_root_draws_every_environment(done, tmp_path, capsys):

@@ -303,6 +303,10 @@ class Dashboard:
         group = request.query.get("group") or None
         return web.json_response(await self._call(source, source.grid, page, group))
 
+    async def api_samples(self, request: web.Request) -> web.Response:
+        source = self._source(request)
+        return web.json_response(await self._call(source, source.samples))
+
     async def api_episode(self, request: web.Request) -> web.Response:
         source = self._source(request)
         try:
@@ -406,6 +410,7 @@ def make_app(dashboard: Dashboard, token: str | None = None) -> web.Application:
         web.get("/api/runs/{run}/report", dashboard.api_report),
         web.get("/api/runs/{run}/grid", dashboard.api_grid),
         web.get("/api/runs/{run}/episode", dashboard.api_episode),
+        web.get("/api/runs/{run}/samples", dashboard.api_samples),
         web.get("/files/{run}/{path:.+}", dashboard.frame),
         web.static("/static", STATIC),
     ])

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import bisect
 import hashlib
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +18,8 @@ from typing import Any
 from pydantic import ValidationError
 
 from deepphy.metrics import figures as F
-from deepphy.metrics.report import build_report, setting, table, table_key
+from deepphy.config import is_human
+from deepphy.metrics.report import build_report, episodes_done, sample_size, setting, table, table_key
 from deepphy.runs.records import AttemptRecord
 from deepphy.runs.status import read_status, writer_holds_lock
 from deepphy.runs.store import (
@@ -195,6 +197,14 @@ class RunSource:
             self._report = (self.version, build_report(self.config, self.tasks, self.records, self.k_max))
         return self._report[1]
 
+    def partial_report(self, report: dict[str, Any]) -> dict[str, Any] | None:
+        """While episodes are unfinished: the report over the finished ones alone (what the
+        page's rates show, marked partial with the finished count); None once all are done."""
+        done, total = episodes_done(report)
+        if done == total:
+            return None
+        return build_report(self.config, self.tasks, self.records, self.k_max, finished_only=True)
+
     def curve(self, report: dict[str, Any]) -> dict[str, Any]:
         """The success curve the report implies, mean and std over runs: within k attempts
         (K > 1), else within k decisions, k = 1..max (one attempt of many decisions)."""
@@ -236,21 +246,29 @@ class RunSource:
                 "bytes_read": self.offset, "bytes_total": self.log_size}
 
     def view(self) -> dict[str, Any]:
-        """Everything a run's card, curve and table show."""
+        """Everything a run's card, curve and table show. Every rate is over finished
+        episodes: while some are not, from the partial report (`partial` says how many are
+        done); `report` is always the whole one, as `deepphy report --json` prints it."""
         report = self.report()
+        partial = self.partial_report(report)
+        shown = partial or report
         per_run = report["overall"]["per_run"]
         totals = {k: sum(r[k] for r in per_run) for k in
                   ("solved", "attempts", "invalid_attempts", "model_errors", "retries",
                    "input_tokens", "output_tokens", "cost_usd")}
-        header, rows = table([report])
+        header, rows = table([shown])
+        done, total = episodes_done(report)
         return {
             "id": self.id, "path": str(self.path), "name": self.path.name, "label": setting(report),
             "env": report["env"], "title": report["title"], "model": report["model"], "format": report["format"],
             "env_options": report["env_options"], "runs": report["runs"], "k_max": report["max_attempts"],
             "groups": sorted({t.group for t in self.tasks if t.group}), "tasks": len(self.tasks),
+            "n": sample_size(report), "human": is_human(report["model"]), "human_time": report.get("human_time"),
+            "partial": None if partial is None else {"finished": done, "total": total},
+            "solved_rate": shown["overall"]["mean"]["success_at"][shown["max_attempts"] - 1],
             "version": self.version, "progress": self.progress(report), "totals": totals,
-            "curve": self.curve(report), "stars": report["overall"]["mean"].get("stars"),
-            "table": {"header": header, "rows": rows, "key": table_key([report])}, "report": report, "errors": self.errors[-5:],
+            "curve": self.curve(shown), "stars": shown["overall"]["mean"].get("stars"),
+            "table": {"header": header, "rows": rows, "key": table_key([shown])}, "report": report, "errors": self.errors[-5:],
             "live": self.snapshot is not None,
         }
 
@@ -284,6 +302,32 @@ class RunSource:
             "tasks": [[t.id, t.group] for t in shown],
             "cells": [[self._cell((t.id, r)).as_json() for r in range(self.config.runs)] for t in shown],
         }
+
+    # -- the episode browser's list -----------------------------------------------------
+
+    def samples(self) -> dict[str, Any]:
+        """Every episode recorded so far, one row each, for the page's filterable list (in
+        task order, then run): its outcome, attempts, decisions, invalid attempts and the kind
+        of the last one's reason (numbers made N, so that alike reasons filter together),
+        stars, the agent's time to decide (a person's or the model's), tokens, and words to
+        search (the outcome, the actions)."""
+        rows = []
+        for (task, run) in sorted(self.episodes, key=lambda k: (self.task_index.get(k[0], 0), k[1])):
+            if task not in self.task_index or run >= self.config.runs:
+                continue
+            attempts = sorted(self.episodes[(task, run)].values(), key=lambda r: r.attempt)
+            cell = self._cell((task, run))
+            reasons = [r.invalid_reason for r in attempts if r.invalid_reason]
+            actions = "; ".join(s.action_text or s.raw_output[:60] for r in attempts for s in r.steps)
+            rows.append([
+                task, self.tasks[self.task_index[task]].group, run, cell.state, cell.attempts, cell.solved_at,
+                sum(len(r.steps) for r in attempts), cell.invalid, reason_kind(reasons[-1]) if reasons else None,
+                cell.stars, round(sum(sum(r.timing.decision_s) for r in attempts), 3),
+                sum(r.model_stats.usage.input_tokens + r.model_stats.usage.output_tokens for r in attempts),
+                f"{attempts[-1].feedback} {actions}"[:SEARCH_CHARS],
+            ])
+        return {"run": self.id, "human": is_human(self.config.model), "k_max": self.k_max, "runs": self.config.runs,
+                "columns": SAMPLE_COLUMNS, "rows": rows}
 
     # -- one episode --------------------------------------------------------------------
 
@@ -365,6 +409,16 @@ class RunSource:
             return None
         return read_image(self.path, name)
 
+
+
+SAMPLE_COLUMNS = ["task", "group", "run", "state", "attempts", "solved_at", "decisions", "invalid", "reason", "stars",
+                  "seconds", "tokens", "words"]
+SEARCH_CHARS = 400  # of an episode's outcome and actions, searched by the page
+
+
+def reason_kind(reason: str) -> str:
+    """An invalid reason with its numbers made N: alike reasons filter together."""
+    return re.sub(r"-?\d+(?:\.\d+)?", "N", reason)[:120]
 
 
 def runs_in(path: Path, depth: int = RUN_SEARCH_DEPTH) -> list[Path]:

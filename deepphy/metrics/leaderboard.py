@@ -20,9 +20,13 @@ from pathlib import Path
 from typing import Any, Callable, Collection, Sequence
 
 from deepphy.envs import get_spec, specs
-from deepphy.metrics.report import LATEX_PREAMBLE, _count, _pct, latex_escape, mixed_task_sets, options_of, paper_setting
+from deepphy.metrics.report import (
+    LATEX_PREAMBLE, LATEX_WIDTH, _count, _pct, episodes_done, latex_escape, mixed_task_sets, options_of, paper_setting,
+    sample_size,
+)
 
 BEST = "*"  # after the best value of a column (text, Markdown, CSV); LaTeX sets it in bold
+UNRANKED = "\u2020"  # after a value left out of its column's ranking (other tasks, runs or attempts)
 
 
 class LeaderboardError(ValueError):
@@ -33,8 +37,10 @@ class LeaderboardError(ValueError):
 class Column:
     header: str
     key: str  # what the column is, for the key under the table
-    figure: Callable[[dict[str, Any]], tuple[float | None, float | None]]  # report -> (mean, std)
+    figure: Callable[[dict[str, Any]], tuple[float | None, float | None]] | None  # report -> (mean, std)
     percent: bool = True  # else a count
+    ranked: bool = True  # its best value is marked (a score; not n, not a person's time)
+    text: Callable[[dict[str, Any]], str] | None = None  # a column of words (n), not of figures
 
 
 @dataclass
@@ -45,6 +51,8 @@ class Cell:
     best: bool = False
     unfinished: str | None = None  # "done/total" episodes, when the run is not complete
     run_dir: str | None = None
+    n: str | None = None  # the row's tasks x runs ("40x3")
+    unranked: bool = False  # left out of the column's ranking: other tasks, runs or attempts than those ranked
 
 
 @dataclass
@@ -95,13 +103,41 @@ def _overall(report: dict[str, Any], name: str, index: int | None = None):
     return (m, s) if index is None or m is None else (m[index], s[index])
 
 
+N_COLUMN = Column("n", "n: tasks x runs of the row's run (rows of other n are not ranked against each other)",
+                  None, percent=False, ranked=False, text=sample_size)
+
+
+def _human(name: str, scale: float = 1.0):
+    def figure(report: dict[str, Any]) -> tuple[float | None, None]:
+        value = (report.get("human_time") or {}).get(name)
+        return (None if value is None else value / scale), None
+    return figure
+
+
+HUMAN_COLUMNS = [  # a person's rows only; a time, never ranked
+    Column("Human s/dec", "Human s/dec, s/task: a person's time to decide, median per decision and per task",
+           _human("median_decision_s"), percent=False, ranked=False),
+    Column("Human s/task", "Human s/dec, s/task: a person's time to decide, median per decision and per task",
+           _human("median_task_s"), percent=False, ranked=False),
+    Column("Human min", "Human min: the person's time to decide in all", _human("total_s", 60.0), percent=False,
+           ranked=False),
+]
+
+
+def comparability(report: dict[str, Any]) -> tuple[str, int, int]:
+    """What two rows of one environment setting must share to be ranked against each other:
+    the task set, the runs and the attempts per task."""
+    return report["task_set"], report["runs"], report["max_attempts"]
+
+
 def headline_columns(report: dict[str, Any]) -> list[Column]:
-    """An environment's headline figures, from its spec (the same for every report of it)."""
+    """An environment's headline figures, from its spec (the same for every report of it),
+    after its n."""
     spec = get_spec(report["env"])
     k = report["max_attempts"]
     succ = (f"Succ@{k}", f"Succ@{k}: tasks solved within {k} attempts (%)") if k > 1 else \
         ("Succ", "Succ: tasks solved in their one attempt (all its decisions, shots or actions) (%)")
-    columns = []
+    columns = [N_COLUMN]
     if spec.report.leaderboard_groups:
         for g in report.get("groups", {}):
             columns.append(Column(g, f"{g}: tasks of {spec.report.group_noun} {g} solved (%)",
@@ -133,12 +169,13 @@ def _setting_title(env: str, options: dict[str, Any]) -> str:
 
 def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path] | None = None) -> Leaderboard:
     """The table of these reports (`run_dirs[i]` made `reports[i]`). Two reports of one row
-    and one environment setting are an error: the table would have to pick one."""
+    and one environment setting are an error: the table would have to pick one. A column's
+    best is marked among rows of one task set, runs and attempts (`comparability`): those of
+    the most rows; the others are marked unranked, and a note names them."""
     run_dirs = [str(d) for d in run_dirs] if run_dirs is not None else [None] * len(reports)
     groups: dict[tuple[str, str], Group] = {}
     rows: dict[tuple[str, str], int] = {}
-    where: dict[tuple[int, int], str | None] = {}
-    cells: dict[tuple[int, int], list[Cell]] = {}
+    placed: dict[tuple[int, int], tuple[dict[str, Any], str | None]] = {}
     agents: dict[str, dict[str, Any]] = {}
     for report, run_dir in zip(reports, run_dirs):
         options = options_of(report)
@@ -150,32 +187,63 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
         r = rows.setdefault((row_model(report), report["format"]), len(rows))
         if report.get("agent") is not None:
             agents[row_model(report)] = report["agent"]
-        if (r, g) in cells:
+        if (r, g) in placed:
             raise LeaderboardError(f"two runs of {row_model(report)} {report['format'].upper()} on {group.title}: "
-                                   f"{where[(r, g)]} and {run_dir}; give one of them")
-        where[(r, g)] = run_dir
+                                   f"{placed[(r, g)][1]} and {run_dir}; give one of them")
+        placed[(r, g)] = (report, run_dir)
         group.reports.append(report)
-        per_run = report["overall"]["per_run"]
-        done = sum(x["tasks"] - x["unfinished"] for x in per_run)
-        total = report["overall"]["tasks"] * report["runs"]
+    for group in groups.values():
+        if any("human_time" in report for report in group.reports):
+            group.columns = group.columns + HUMAN_COLUMNS
+    cells: dict[tuple[int, int], list[Cell]] = {}
+    for (r, g), (report, run_dir) in placed.items():
+        columns = list(groups.values())[g].columns
+        done, total = episodes_done(report)
+        n = sample_size(report)
         if done < total:
-            cells[(r, g)] = [Cell(text=f"unfinished {done}/{total}" if i == 0 else "", unfinished=f"{done}/{total}",
-                                  run_dir=run_dir) for i in range(len(group.columns))]
+            cells[(r, g)] = [Cell(text=n if c.text else f"unfinished {done}/{total}" if i == 1 else "",
+                                  unfinished=f"{done}/{total}", run_dir=run_dir, n=n) for i, c in enumerate(columns)]
             continue
         cells[(r, g)] = []
-        for column in group.columns:
+        for column in columns:
+            if column.text is not None:
+                cells[(r, g)].append(Cell(text=column.text(report), run_dir=run_dir, n=n))
+                continue
             m, s = column.figure(report)
             text = _pct(m, s) if column.percent else _count(m, s)
-            cells[(r, g)].append(Cell(m, s, text, run_dir=run_dir))
-    for g, group in enumerate(groups.values()):  # the best finished value of each column
-        for c in range(len(group.columns)):
-            values = [cells[(r, g)][c] for r in range(len(rows)) if (r, g) in cells]
-            scored = [x for x in values if x.unfinished is None and x.mean is not None]
-            if len({x.mean for x in scored}) > 1:  # all equal: nothing is best
-                top = max(x.mean for x in scored)
-                for x in scored:
-                    x.best = x.mean == top
-    notes = [f"{group.title}: {note}" for group in groups.values() if (note := mixed_task_sets(group.reports))]
+            cells[(r, g)].append(Cell(m, s, text, run_dir=run_dir, n=n))
+    notes = []
+    for g, group in enumerate(groups.values()):  # the best finished value of each column, among comparable rows
+        in_group = {r: placed[(r, g)][0] for r in range(len(rows)) if (r, g) in placed}
+        unranked: set[int] = set()
+        for c, column in enumerate(group.columns):
+            if not column.ranked:
+                continue
+            scored = [(r, cells[(r, g)][c]) for r in in_group
+                      if cells[(r, g)][c].unfinished is None and cells[(r, g)][c].mean is not None]
+            classes: dict[tuple, list[tuple[int, Cell]]] = {}
+            for r, cell in scored:
+                classes.setdefault(comparability(in_group[r]), []).append((r, cell))
+            if not classes:
+                continue
+            # the class of the most rows (on a tie, the most tasks x runs) is ranked
+            size = lambda k: in_group[classes[k][0][0]]["overall"]["tasks"] * k[1]  # noqa: E731 - tasks x runs
+            ranked_key = max(classes, key=lambda k: (len(classes[k]), size(k)))
+            ranked = classes[ranked_key]
+            for key, members in classes.items():
+                if key != ranked_key:
+                    for r, cell in members:
+                        cell.unranked = True
+                        unranked.add(r)
+            if len({cell.mean for _, cell in ranked}) > 1:  # all equal: nothing is best
+                top = max(cell.mean for _, cell in ranked)
+                for _, cell in ranked:
+                    cell.best = cell.mean == top
+        if unranked:
+            names = ", ".join(f"{m} {f.upper()} (n={sample_size(in_group[r])})"
+                              for (m, f), r in rows.items() if r in unranked)
+            notes.append(f"{group.title}: not ranked against the other rows (other tasks, runs or attempts): {names}")
+    notes += [f"{group.title}: {note}" for group in groups.values() if (note := mixed_task_sets(group.reports))]
     notes += [f"{group.title}: {paper_setting(group.reports[0])}" for group in groups.values()
               if paper_setting(group.reports[0]) != paper_setting({"departures": []})]
     # columns in the registry's order of environments, the default options first; rows as given
@@ -215,7 +283,7 @@ def not_started(root: Path, started: Collection[Path],
 
 
 def _marked(cell: Cell) -> str:
-    return cell.text + (BEST if cell.best else "")
+    return cell.text + (BEST if cell.best else UNRANKED if cell.unranked else "")
 
 
 def _flat_header(board: Leaderboard) -> list[str]:
@@ -223,7 +291,9 @@ def _flat_header(board: Leaderboard) -> list[str]:
 
 
 def _key_line(board: Leaderboard) -> str:
-    return " · ".join([*board.keys(), f"{BEST}: best of the column", "values: mean±std over runs",
+    return " · ".join([*board.keys(), f"{BEST}: best of the column among rows of one n",
+                       f"{UNRANKED}: not ranked (other tasks, runs or attempts than the rows ranked)",
+                       "values: mean±std over runs",
                        "unfinished d/t: episodes complete, not averaged in",
                        "settings: the paper's set-up unless a note says how one departs from it"])
 
@@ -251,7 +321,7 @@ def render_markdown(board: Leaderboard) -> str:
     header = _flat_header(board)
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join(["---"] + ["--:"] * (len(header) - 1)) + "|"]
     for i in range(len(board.rows)):
-        cells = [f"**{c.text}**" if c.best else c.text for c in board.row_cells(i)]
+        cells = [f"**{c.text}**" if c.best else _marked(c) for c in board.row_cells(i)]
         lines.append("| " + " | ".join([board.row_label(i), *cells]) + " |")
     return "\n".join([*lines, "", _key_line(board).replace(f"{BEST}: best", "bold: best"),
                       *(f"note: {n}" for n in board.notes)])
@@ -269,11 +339,11 @@ def render_csv(board: Leaderboard) -> str:
 def as_dict(board: Leaderboard) -> dict[str, Any]:
     """The board as plain data (`--json`, the dashboard's leaderboard view)."""
     return {
-        "columns": [{"env": g.env, "env_options": g.options, "title": g.title, "header": c.header, "key": c.key}
-                    for g in board.groups for c in g.columns],
+        "columns": [{"env": g.env, "env_options": g.options, "title": g.title, "header": c.header, "key": c.key,
+                     "ranked": c.ranked} for g in board.groups for c in g.columns],
         "rows": [{"model": model, "format": fmt, **({"agent": board.agents[model]} if model in board.agents else {}),
-                  "cells": [{"mean": c.mean, "std": c.std, "text": c.text, "best": c.best,
-                             "unfinished": c.unfinished, "run_dir": c.run_dir} for c in board.row_cells(i)]}
+                  "cells": [{"mean": c.mean, "std": c.std, "text": c.text, "best": c.best, "unranked": c.unranked,
+                             "unfinished": c.unfinished, "run_dir": c.run_dir, "n": c.n} for c in board.row_cells(i)]}
                  for i, (model, fmt) in enumerate(board.rows)],
         "notes": board.notes,
         "key": _key_line(board),
@@ -284,21 +354,31 @@ def render_json(board: Leaderboard) -> str:
     return json.dumps(as_dict(board), indent=2)
 
 
+def _latex_blocks(board: Leaderboard, width: int = LATEX_WIDTH) -> list[list[int]]:
+    """The groups (by index) of each block of a wide table: as many as fit in `width`
+    characters of plain text beside the row labels; a group wider than that is a block alone."""
+    label = max(len(board.row_label(i)) for i in range(len(board.rows))) + 2 if board.rows else 8
+    blocks: list[list[int]] = []
+    used = width
+    for g, group in enumerate(board.groups):
+        cells = [board.cells[(r, g)] for r in range(len(board.rows)) if (r, g) in board.cells]
+        w = max(len(group.title),
+                sum(2 + max([len(c.header)] + [len(_marked(row[k])) for row in cells]) for k, c in enumerate(group.columns)))
+        if blocks and used + w <= width:
+            blocks[-1].append(g)
+            used += w
+        else:
+            blocks.append([g])
+            used = label + w
+    return blocks
+
+
 def render_latex(board: Leaderboard) -> str:
-    """A `table*` float: a column group per environment setting, best values in bold.
-    Needs `\\usepackage{booktabs}` and `\\usepackage{graphicx}` (LATEX_PREAMBLE)."""
-    n = sum(len(g.columns) for g in board.groups)
-    top, rules, j = ["Setting"], [], 2
-    for g in board.groups:
-        top.append(r"\multicolumn{%d}{c}{%s}" % (len(g.columns), latex_escape(g.title)))
-        rules.append(r"\cmidrule(lr){%d-%d}" % (j, j + len(g.columns) - 1))
-        j += len(g.columns)
-    header = [""] + [latex_escape(c.header) for g in board.groups for c in g.columns]
-    body = []
-    for i in range(len(board.rows)):
-        cells = [(r"\textbf{%s}" if c.best else "%s") % latex_escape(c.text) for c in board.row_cells(i)]
-        body.append(" & ".join([latex_escape(board.row_label(i)), *cells]) + r" \\")
-    return "\n".join([
+    """A `table*` float: a column group per environment setting, best values in bold,
+    unranked ones with a dagger; wide tables split between groups into blocks stacked in
+    one box (each repeating the row labels), scaled down to the line width only if still
+    wider. Needs `\\usepackage{booktabs}` and `\\usepackage{graphicx}` (LATEX_PREAMBLE)."""
+    lines = [
         f"% deepphy leaderboard --latex; preamble: {LATEX_PREAMBLE}",
         r"\begin{table*}[htbp]",
         r"\centering",
@@ -306,14 +386,32 @@ def render_latex(board: Leaderboard) -> str:
                                                 *(f"note: {n}" for n in board.notes)])) + "}",
         r"\label{tab:deepphy-leaderboard}",
         r"\resizebox{\ifdim\width>\linewidth\linewidth\else\width\fi}{!}{%",
-        r"\begin{tabular}{l" + "r" * n + "}",
-        r"\toprule",
-        " & ".join(top) + r" \\",
-        "".join(rules),
-        " & ".join(header) + r" \\",
-        r"\midrule",
-        *body,
-        r"\bottomrule",
-        r"\end{tabular}}",
-        r"\end{table*}",
-    ])
+        r"\begin{tabular}{@{}l@{}}",
+    ]
+    for b, groups in enumerate(_latex_blocks(board)):
+        n = sum(len(board.groups[g].columns) for g in groups)
+        top, rules, j = ["Setting"], [], 2
+        for g in groups:
+            group = board.groups[g]
+            top.append(r"\multicolumn{%d}{c}{%s}" % (len(group.columns), latex_escape(group.title)))
+            rules.append(r"\cmidrule(lr){%d-%d}" % (j, j + len(group.columns) - 1))
+            j += len(group.columns)
+        header = [""] + [latex_escape(c.header) for g in groups for c in board.groups[g].columns]
+        body = []
+        for i in range(len(board.rows)):
+            cells = [(r"\textbf{%s}" if c.best else r"%s$^\dagger$" if c.unranked else "%s") % latex_escape(c.text)
+                     for g in groups for c in board.cells.get((i, g), _missing(board.groups[g]))]
+            body.append(" & ".join([latex_escape(board.row_label(i)), *cells]) + r" \\")
+        lines += [
+            *([r"\\ \noalign{\vskip 2ex}"] if b else []),
+            r"\begin{tabular}{l" + "r" * n + "}",
+            r"\toprule",
+            " & ".join(top) + r" \\",
+            "".join(rules),
+            " & ".join(header) + r" \\",
+            r"\midrule",
+            *body,
+            r"\bottomrule",
+            r"\end{tabular}",
+        ]
+    return "\n".join([*lines, r"\end{tabular}}", r"\end{table*}"])

@@ -8,14 +8,15 @@ import hashlib
 import io
 import json
 import re
+import statistics
 from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
-from deepphy.config import RunConfig
+from deepphy.config import RunConfig, is_human
 from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.metrics import figures as F
-from deepphy.runs.records import AttemptRecord
+from deepphy.runs.records import AttemptRecord, episode_finished
 
 TEXT_WIDTH = 120  # characters: a wider text table is split into blocks of column groups
 LATEX_WIDTH = 80  # characters of plain cell text per LaTeX block (~ an article's \linewidth at 10 pt)
@@ -81,21 +82,35 @@ def _mean_std(per_run: list[dict[str, Any]]) -> tuple[dict[str, Any], dict[str, 
 
 
 def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int, spec: EnvSpec,
-             wm_records: list[AttemptRecord] | None) -> dict[str, Any]:
-    """Figures per run, then mean and std. `wm_records`: the records to score WM predictions on."""
+             wm_records: list[AttemptRecord] | None, finished_only: bool = False) -> dict[str, Any]:
+    """Figures per run, then mean and std. `wm_records`: the records to score WM predictions on.
+    `finished_only`: every figure over the finished episodes alone (a run in progress: its
+    unfinished episodes are left out, not counted as unsolved); Pass@k over the tasks whose
+    runs have all finished."""
     by_run: dict[int, list[F.Episode]] = defaultdict(list)
     for e in eps:
         by_run[e.run].append(e)
     wanted = {t.id for t in tasks}
+    finished = sum(e.finished for e in eps)
+    if finished_only:
+        by_run = defaultdict(list, {r: [e for e in x if e.finished] for r, x in by_run.items()})
+        done_runs: dict[str, int] = defaultdict(int)
+        for e in eps:
+            done_runs[e.task] += e.finished
+        complete = {t for t, n in done_runs.items() if n >= runs}
+        pass_eps, pass_n = [e for e in eps if e.task in complete], len(complete)
+    else:
+        pass_eps, pass_n = eps, len(tasks)
     per_run = [
-        _run_figures(by_run.get(r, []), len(tasks), k_max, spec, r,
+        _run_figures(by_run.get(r, []), len(by_run.get(r, [])) if finished_only else len(tasks), k_max, spec, r,
                      None if wm_records is None else [x for x in wm_records if x.run == r and x.task in wanted])
         for r in range(runs)
     ]
     mean, std = _mean_std(per_run)
     # Across runs, not per run: Pass@k for k = 1..runs (the paper's tables' Pass@K)
-    pass_at = [F.pass_at(eps, k, runs, len(tasks)) for k in range(1, runs + 1)]
-    return {"tasks": len(tasks), "per_run": per_run, "mean": mean, "std": std, "pass_at": pass_at}
+    pass_at = [F.pass_at(pass_eps, k, runs, pass_n) for k in range(1, runs + 1)]
+    return {"tasks": len(tasks), "finished": finished, "per_run": per_run, "mean": mean, "std": std,
+            "pass_at": pass_at}
 
 
 def task_set_digest(tasks: Sequence[Task]) -> str:
@@ -111,11 +126,34 @@ def departures(config: RunConfig) -> list[str]:
     return out + cls.Options.departures_from_paper(config.env_options)
 
 
-def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[AttemptRecord], k_max: int) -> dict[str, Any]:
+def human_time(records: Sequence[AttemptRecord], k_max: int) -> dict[str, Any]:
+    """A person's time to decide (`timing.decision_s`: the page's clock from the prompt shown
+    to the answer given; simulation not counted): per decision and per task (all the
+    decisions of a finished episode), median, and in total."""
+    per_decision = [s for r in records for s in r.timing.decision_s]
+    episodes: dict[tuple[str, int], list[AttemptRecord]] = defaultdict(list)
+    for r in records:
+        episodes[(r.task, r.run)].append(r)
+    per_task = [sum(s for r in rs for s in r.timing.decision_s) for rs in episodes.values()
+                if episode_finished(rs, k_max)]
+    return {"decisions": len(per_decision), "tasks": len(per_task),
+            "median_decision_s": statistics.median(per_decision) if per_decision else None,
+            "median_task_s": statistics.median(per_task) if per_task else None,
+            "total_s": sum(per_decision)}
+
+
+def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[AttemptRecord], k_max: int,
+                 finished_only: bool = False) -> dict[str, Any]:
+    """The report of a run's records. `finished_only`: the figures over finished episodes
+    alone (a live view's partial estimate; `partial` in the report says so)."""
     spec = get_spec(config.env)
     wanted = {t.id for t in tasks}
+    records = [r for r in records if r.task in wanted and r.run < config.runs]
     eps = [e for e in F.episodes(records, k_max) if e.task in wanted and e.run < config.runs]
     wm = list(records) if config.format.value == "wm" else None
+    if wm is not None and finished_only:
+        done = {(e.task, e.run) for e in eps if e.finished}
+        wm = [r for r in wm if (r.task, r.run) in done]
     report: dict[str, Any] = {
         "env": config.env,
         "title": spec.title,
@@ -131,18 +169,38 @@ def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[Att
         "prompts": config.prompts,
         "departures": departures(config),
         "task_set": task_set_digest(tasks),
-        "overall": _section(eps, tasks, config.runs, k_max, spec, wm),
+        "overall": _section(eps, tasks, config.runs, k_max, spec, wm, finished_only),
     }
     if config.agent is not None:  # a user's agent: its entry point, arguments and package version
         report["agent"] = config.agent.model_dump(mode="json")
+    if finished_only:
+        report["partial"] = True
+    if is_human(config.model):
+        report["human_time"] = human_time(records, k_max)
     groups = list(dict.fromkeys(t.group for t in tasks if t.group))  # in the environment's order (S, M, L)
     if len(groups) > 1:
         report["groups"] = {
             g: _section([e for e in eps if e.group == g], [t for t in tasks if t.group == g], config.runs, k_max,
-                        spec, wm)
+                        spec, wm, finished_only)
             for g in groups
         }
     return report
+
+
+def episodes_done(report: dict[str, Any], section: dict[str, Any] | None = None) -> tuple[int, int]:
+    """(finished episodes, all episodes: tasks x runs) of a report's section (overall by default)."""
+    sec = report["overall"] if section is None else section
+    total = sec["tasks"] * report["runs"]
+    if "finished" in sec:
+        return sec["finished"], total
+    return total - sum(r["unfinished"] for r in sec["per_run"]), total  # a report made before `finished`
+
+
+def sample_size(report: dict[str, Any], section: dict[str, Any] | None = None) -> str:
+    """n of a row: tasks x runs, and the episodes finished where not all are ("40x3", "40x3 (31 done)")."""
+    sec = report["overall"] if section is None else section
+    done, total = episodes_done(report, sec)
+    return f"{sec['tasks']}x{report['runs']}" + ("" if done == total else f" ({done} done)")
 
 
 def report_of(run_dir) -> dict[str, Any]:
@@ -296,6 +354,18 @@ def _column_groups(reports: Sequence[dict[str, Any]]) -> list[_Columns]:
                             ["ModelErr: model requests that failed for good", "Retries: model request retries"],
                             lambda r, m, s: [_count(m["model_errors"], s["model_errors"]),
                                              _count(m["retries"], s["retries"])]))
+    if any("human_time" in r for r in reports):  # a person's time to decide: never a model's latency
+        def human(r, sec):
+            h = r.get("human_time")
+            if h is None or sec is not r["overall"]:
+                return ["-", "-", "-"]
+            return [_num(h["median_decision_s"], None, 1), _num(h["median_task_s"], None, 1),
+                    _num(h["total_s"] / 60, None, 1)]
+
+        out.append(_Columns(["Human s/dec", "Human s/task", "Human min"],
+                            ["Human s/dec, s/task: a person's time to decide (the page's clock, simulation not "
+                             "counted), median per decision and per finished task", "Human min: the person's time in all"],
+                            lambda r, m, s: [], across_runs=human))
     if any(x["cost_usd"] or x["input_tokens"] for x in per_runs):
         out.append(_Columns(["TokensIn", "TokensOut", "Cost$"],
                             ["TokensIn/TokensOut: tokens sent and received", "Cost$: model cost (US dollars)"],
@@ -350,7 +420,7 @@ def _table(reports: Sequence[dict[str, Any]]) -> _Table:
     rows = []
     for report in reports:
         for name, sec in [("all", report["overall"]), *report.get("groups", {}).items()]:
-            rows.append(([setting(report)] if combined else []) + [name, str(sec["tasks"])]
+            rows.append(([setting(report)] if combined else []) + [name, sample_size(report, sec)]
                         + [c for g in groups for c in g.row(report, sec)])
     return _Table(header, rows, labels, columns, [k for g in groups for k in g.key])
 
@@ -364,7 +434,10 @@ def table(reports: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]
 
 def table_key(reports: Sequence[dict[str, Any]]) -> str:
     """What the table's columns are, in one line (shown under every rendering of it)."""
-    return " · ".join([*_table(reports).keys, "values: mean±std over runs; counts per run"])
+    partial = any(r.get("partial") for r in reports)
+    return " · ".join([*_table(reports).keys, "n: tasks x runs (and the episodes done, where not all are)",
+                       "values: mean±std over runs; counts per run"]
+                      + (["partial: over the finished episodes only"] if partial else []))
 
 
 def _as_list(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -383,6 +456,11 @@ def render_text(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
     note = mixed_task_sets(reports)
     if note:
         lines.append(f"note: {note}")
+    for report in reports:
+        done, total = episodes_done(report)
+        if done < total and not report.get("partial"):
+            lines.append(f"note: {setting(report)}: partial, {done} of {total} episodes finished; the unfinished count "
+                         "as unsolved (their success figures can only rise)")
     for columns in t.blocks(TEXT_WIDTH):
         header, rows = t.block(columns)
         widths = [max(len(header[i]), *(len(r[i]) for r in rows)) for i in range(len(header))]
@@ -443,7 +521,7 @@ def latex_escape(text: str) -> str:
     """Plain text as LaTeX (default OT1 encoding: <, > and | are not text characters there)."""
     parts = text.split("->")
     escaped = [("".join(_LATEX_SPECIAL.get(c, c) for c in p)).replace("±", r"$\pm$").replace("★", r"$\star$")
-               for p in parts]
+               .replace("\u2020", r"$^\dagger$") for p in parts]
     return r"$\to$".join(escaped)
 
 

@@ -25,13 +25,13 @@ from typing import Any, Callable
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from deepphy.chat import Image, ImagePart, TextPart
+from deepphy.config import HUMAN_PREFIX
 from deepphy.envs import ActionSpace, InvalidAction
 from deepphy.models.base import ModelRequest, ModelResponse, RequestContext
 from deepphy.prompts import prompt_digest
 from deepphy.prompts.base import CURRENT_OBSERVATION
 from deepphy.runs.store import RunDirError
 
-HUMAN_PREFIX = "human:"  # a person's run has the model `human:NAME`
 PLAYER_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,39}$")
 JOURNAL = "human.jsonl"
 JOURNAL_MAX_BYTES = 64 * 1024**2  # a person's answers are a few hundred bytes each
@@ -136,13 +136,15 @@ class Pending:
 
     def view(self, image_url: Callable[[int], str]) -> dict[str, Any]:
         """The prompt as the page shows it: the system text, then the user message's parts up
-        to the current observation (history, earlier decisions), then the observation."""
+        to the current observation (history, earlier decisions), then the observation (from
+        its "Current observation:" on), each part with its place in the prompt."""
         ctx = self.request.context
         system = "\n\n".join(m.text for m in self.request.messages if m.role == "system")
         before: list[dict[str, Any]] = []
         observation: list[dict[str, Any]] = []
         parts = before
-        index = 0
+        index = 0  # of the prompt's images
+        place = 0  # of the user message's parts: the page shows every one, in the prompt's order
         for message in self.request.messages:
             if message.role == "system":
                 continue
@@ -150,13 +152,13 @@ class Pending:
                 if isinstance(part, TextPart):
                     if part.text == CURRENT_OBSERVATION:
                         parts = observation
-                        continue
-                    parts.append({"text": part.text})
+                    parts.append({"text": part.text, "part": place})
                 else:
                     width, height = part.image.size
                     parts.append({"image": image_url(index), "name": part.image.name, "caption": part.image.caption,
-                                  "width": width, "height": height})
+                                  "width": width, "height": height, "part": place})
                     index += 1
+                place += 1
         return {
             "key": self.key, "task": ctx.task_id, "run": ctx.run, "attempt": ctx.attempt, "step": ctx.step,
             "prompt": self.digest, "format": ctx.format.value, "space": ctx.action_space, "earlier": ctx.earlier,

@@ -151,9 +151,11 @@ def film_key(run_dir: str | Path, task: str, run: int, attempt: int) -> str:
     return hashlib.sha1(repr((str(run_dir), task, run, attempt)).encode()).hexdigest()[:16]
 
 
-def add_routes(app: web.Application, run_dir_of: Callable[[str], Path | None]) -> None:
+def add_routes(app: web.Application, run_dir_of: Callable[[str], Path | None],
+               may_replay: Callable[[str, int], str | None] = lambda task, run: None) -> None:
     """The replay page and its API on a server: `run_dir_of(run id)` names the run
-    directories it may replay (None: not one of them)."""
+    directories it may replay (None: not one of them); `may_replay(task, run)` says why an
+    episode's attempts may not be replayed yet (None: they may)."""
     films = Films()
 
     async def page(request: web.Request) -> web.StreamResponse:
@@ -165,6 +167,9 @@ def add_routes(app: web.Application, run_dir_of: Callable[[str], Path | None]) -
             raise web.HTTPNotFound(text="no such run")
         try:
             task, run, attempt = request.query["task"], int(request.query["run"]), int(request.query["attempt"])
+            refused = may_replay(task, run)
+            if refused:
+                raise web.HTTPForbidden(text=refused)
             made = await films.get(run_dir, task, run, attempt)
         except (KeyError, ValueError) as e:
             raise web.HTTPNotFound(text=f"no such attempt: {e.args[0] if e.args else e}") from None

@@ -86,14 +86,6 @@ class PlayServer:
         png = await asyncio.to_thread(image.load)
         return web.Response(body=png, content_type="image/png", headers={"Cache-Control": "max-age=3600"})
 
-    async def last_frame(self, request: web.Request) -> web.Response:
-        """A key frame of what the latest decision did (or one of the few before it)."""
-        try:
-            png = self.session.frames[int(request.match_info["id"])][_index(request.match_info["index"])]
-        except (ValueError, KeyError, IndexError):
-            raise web.HTTPNotFound(text="no such frame") from None
-        return web.Response(body=png, content_type="image/png", headers={"Cache-Control": "max-age=3600"})
-
     # -- answers --------------------------------------------------------------------------
 
     async def _body(self, request: web.Request) -> tuple[str, str]:
@@ -136,6 +128,14 @@ class PlayServer:
     def replay_run_dir(self, rid: str) -> Path | None:
         return self.session.path if rid == self.run_id else None
 
+    def may_replay(self, task: str, run: int) -> str | None:
+        """Why an attempt may not be replayed yet (None: it may): a task's replays open once
+        its episode is over, as a model sees no replay before its next decision."""
+        if self.session.episode_over(task, run):
+            return None
+        return ("this task is still being played: its replays open once it is over (a model sees none before its "
+                "next decision)")
+
 
 def sse(event: str, payload: Any) -> bytes:
     return f"event: {event}\ndata: {json.dumps(payload, separators=(',', ':'))}\n\n".encode()
@@ -156,11 +156,10 @@ def make_app(server: PlayServer) -> web.Application:
         web.get("/api/state", server.api_state),
         web.get("/api/events", server.events),
         web.get("/api/prompt/{digest}/{index}.png", server.prompt_image),
-        web.get("/api/last/{id}/{index}.png", server.last_frame),
         web.post("/api/check", server.check),
         web.post("/api/answer", server.answer),
     ])
-    replay.add_routes(app, server.replay_run_dir)
+    replay.add_routes(app, server.replay_run_dir, server.may_replay)
 
     async def end_streams(app: web.Application) -> None:  # open event streams end now, not at their next heartbeat
         server.desk.close()

@@ -26,7 +26,7 @@ from deepphy.envs.angrybirds.levels import Level, level_ids, load_level
 from deepphy.envs.angrybirds.render import render
 from deepphy.envs.angrybirds.sim import ShotResult, World
 from deepphy.envs.angrybirds.space import Shoot, ShootSpace
-from deepphy.envs.base import Action, EnvOptions, Environment, Observation, StepResult, Task
+from deepphy.envs.base import FILM_FPS, Action, EnvOptions, Environment, Frame, Observation, StepResult, Task
 from deepphy.envs.images import Image, stack_frames
 
 FLIGHT_FRAMES = 4  # frames in the strip of a shot's flight
@@ -46,6 +46,8 @@ class AngryBirdsEnv(Environment):
         self._world: World | None = None
         self._shots = 0
         self._trails: list = []
+        self._film_every: float | None = None  # set while `film` steps: the shot keeps a replay's pictures
+        self._last_shot: ShotResult | None = None
 
     @classmethod
     def tasks(cls, options) -> list[Task]:
@@ -73,7 +75,7 @@ class AngryBirdsEnv(Environment):
         if self._shots >= len(level.birds) or world.pigs_left == 0:
             raise RuntimeError("the attempt is over: reset() first")
         bird = level.birds[self._shots]
-        shot = world.shoot(bird, action.angle, action.power, record=True)
+        shot = self._last_shot = world.shoot(bird, action.angle, action.power, record=True, film_every=self._film_every)
         self._shots += 1
         self._trails = shot.trails
         won = world.pigs_left == 0
@@ -110,6 +112,18 @@ class AngryBirdsEnv(Environment):
             score=float(score),
             info=info,
         )
+
+    def film(self, action: Action) -> tuple[StepResult, list[Frame]]:
+        """`step`, with the shot's flight and the scene settling, FILM_FPS pictures per
+        simulated second (the same simulation: the shot only keeps more snapshots)."""
+        self._film_every = 1 / FILM_FPS
+        try:
+            result = self.step(action)
+        finally:
+            self._film_every = None
+        waiting, shot = self._waiting(), self._last_shot
+        return result, [Frame(render(self._level, s.poses, waiting=waiting, trails=s.trails, blasts=s.blasts),
+                              f"t = {s.t:.2f} s of shot {self._shots}") for s in shot.film]
 
     # -- pictures and words ---------------------------------------------------------
 

@@ -111,6 +111,7 @@ class ShotResult:
     at_rest: bool = True  # False: stopped at SHOT_MAX_TIME
     trails: list[list[tuple[float, float]]] = field(default_factory=list)
     snapshots: list[Snapshot] = field(default_factory=list)
+    film: list[Snapshot] = field(default_factory=list)  # a replay's pictures (shoot's `film_every`)
 
     @property
     def blocks_total(self) -> int:
@@ -463,10 +464,11 @@ class World:
     # -- a shot ------------------------------------------------------------------------------
 
     def shoot(self, bird: str, angle: float, power: float, *, record: bool = False,
-              snapshot_every: float = 0.1) -> ShotResult:
+              snapshot_every: float = 0.1, film_every: float | None = None) -> ShotResult:
         """Launch `bird` from the slingshot and simulate until the shot is over: every bird
         of it gone and the scene at rest (or SHOT_MAX_TIME). `record`: keep a snapshot every
-        `snapshot_every` s for pictures."""
+        `snapshot_every` s for pictures. `film_every`: also one every `film_every` s in
+        `shot.film`, for a replay (looking on changes nothing of the shot)."""
         shot = ShotResult(bird=bird)
         self._shot, self._shot_time = shot, 0.0
         first = self._add_bird(bird, (C.SLING_X, C.SLING_Y), C.launch_velocity(angle, power))
@@ -483,6 +485,10 @@ class World:
         still = 0
         if record:
             shot.snapshots.append(Snapshot(0.0, self.poses(), [list(t) for t in trails]))
+        film_steps = max(1, round(film_every / C.DT)) if film_every else 0
+        film_blasts: list[tuple[float, float, float]] = []  # since the last picture: a blast lasts one step
+        if film_steps:
+            shot.film.append(Snapshot(0.0, self.poses(), [list(t) for t in trails]))
         while steps < max_steps:
             self._shot_time = (steps + 1) * C.DT
             self._step()
@@ -514,6 +520,11 @@ class World:
                         trail.append((b.body.position.x, b.body.position.y))
             if record and (steps % snap_every == 0 or self._frame_blasts):
                 shot.snapshots.append(Snapshot(t, self.poses(), [list(tr) for tr in trails], self._frame_blasts))
+            if film_steps:
+                film_blasts += self._frame_blasts
+                if steps % film_steps == 0:
+                    shot.film.append(Snapshot(t, self.poses(), [list(tr) for tr in trails], film_blasts))
+                    film_blasts = []
             self._frame_blasts = []
             if steps >= min_steps and steps % CHECK_EVERY == 0:
                 gone = not any(b.alive for b in birds)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 
-from deepphy.envs.base import Action, Environment, Observation, ObservationCache, StepResult, Task
+from deepphy.envs.base import FILM_FPS, Action, Environment, Frame, Observation, ObservationCache, StepResult, Task
 from deepphy.envs.cuttherope import SPEC
 from deepphy.envs.cuttherope import constants as C
 from deepphy.envs.cuttherope.level import BOX_THEMES, Level, level_ids, load_level
@@ -144,6 +144,26 @@ class CutTheRopeEnv(Environment):
             stars=attempt.stars if attempt.done else None,
             info=self._info(),
         )
+
+    def film(self, action: Action) -> tuple[StepResult, list[Frame]]:
+        """`step`, with a picture of the world FILM_FPS times per simulated second while it
+        runs (the world is only looked at: a copy is drawn)."""
+        world = self.world
+        pictures: list[Frame] = []
+
+        def watch(now: World) -> None:
+            if now.step_count * FILM_FPS // C.STEPS_PER_SECOND > (now.step_count - 1) * FILM_FPS // C.STEPS_PER_SECOND:
+                view = now.snapshot()
+                view.watch = None
+                view.place_attachments()
+                pictures.append(Frame(render(view), f"t = {now.time:.2f} s"))
+
+        world.watch = watch
+        try:
+            result = self.step(action)
+        finally:
+            world.watch = None
+        return result, pictures
 
     # -- observation --------------------------------------------------------------------------
 

@@ -41,6 +41,7 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass, field
+from typing import Callable
 
 import pymunk
 
@@ -167,6 +168,8 @@ class World:
     trail: list[tuple[float, float]] = field(default_factory=list)  # candy positions during the last advance
     min_mouth_distance: float = math.inf  # closest a whole candy's centre came to Om Nom's (the oracle's guide)
     min_join_gap: float = math.inf  # closest the two halves came, edge to edge (the oracle's guide)
+    # Called after every physics step of `advance` (a replay's camera; it must only look):
+    watch: Callable[["World"], None] | None = field(default=None, compare=False, repr=False)
 
     @classmethod
     def from_level(cls, level: Level) -> "World":
@@ -330,6 +333,8 @@ class World:
             changed = self._rules(before)
             if self.step_count % C.TRAIL_EVERY == 0 or self.decided:
                 self.trail += [(candies[i].x, candies[i].y) for i in bodies]  # alive at the step's start
+            if self.watch is not None:
+                self.watch(self)
             if self.decided:
                 break
             if changed:
@@ -341,6 +346,11 @@ class World:
                         for a, b in zip(look, last_look)):
                     break  # at rest at two looks, and it did not move between them
                 last_look = look
+        self.place_attachments()
+
+    def place_attachments(self) -> None:
+        """Hooked ropes' ends and carried bubbles where they are now (the steps leave them
+        for the end of `advance`: only drawing and the text read them)."""
         for rope in self.ropes:
             hook = self.hook(rope)
             if hook:

@@ -155,6 +155,7 @@ const IPHYRE_TIME = 15; // s simulated per attempt: a removal happens at 0 <= t 
 
 CONTROLS.iphyre_plan = ({ space, set }) => {
   const times = new Array(space.num_blocks).fill(null);
+  let chosen = false; // no plan until the person makes one: an empty plan is a whole attempt too
   const lanes = el("div", { class: "lanes" });
   const rows = [];
   for (let i = 0; i < space.num_blocks; i++) {
@@ -164,14 +165,16 @@ CONTROLS.iphyre_plan = ({ space, set }) => {
     const input = el("input", { type: "number", min: 0, max: IPHYRE_TIME - 0.1, step: 0.1, placeholder: "s",
       "data-control": "time", "data-index": i, oninput: (e) => {
         times[i] = e.target.value === "" ? null : Math.min(IPHYRE_TIME - 0.1, Math.max(0, Number(e.target.value)));
+        chosen = true;
         update(false);
       } });
     lane.addEventListener("click", (e) => {
       const [fx] = fraction(e, lane);
       times[i] = Math.min(IPHYRE_TIME - 0.1, Math.max(0, Math.round(fx * IPHYRE_TIME * 10) / 10));
+      chosen = true;
       update(true);
     });
-    const clear = el("button", { type: "button", text: "×", title: "keep this block", onclick: () => { times[i] = null; update(true); } });
+    const clear = el("button", { type: "button", text: "×", title: "keep this block", onclick: () => { times[i] = null; chosen = true; update(true); } });
     rows.push({ mark, input });
     lanes.append(el("span", { text: `block ${i}` }), lane, input, clear);
   }
@@ -183,35 +186,43 @@ CONTROLS.iphyre_plan = ({ space, set }) => {
       if (writeInputs) input.value = times[i] === null ? "" : times[i].toFixed(1);
     });
     const plan = times.map((t, i) => [t, i]).filter(([t]) => t !== null).sort((a, b) => a[0] - b[0] || a[1] - b[1]);
+    none.classList.toggle("on", chosen && plan.length === 0);
+    if (!chosen) return set("");
     // json.dumps of the plan, as the space writes it (floats with a point)
     set("[" + plan.map(([t, i]) => `{"time": ${Number.isInteger(t) ? t.toFixed(1) : String(t)}, "index": ${i}}`).join(", ") + "]");
   }
+  const none = el("button", { type: "button", "data-control": "no-removal", text: "remove nothing",
+    title: "an attempt in which no block is removed", onclick: () => { times.fill(null); chosen = true; update(true); } });
   update(true);
   return el("div", {}, el("p", { class: "hint", text: "Each gray block (numbered on the annotated image) has a timeline: click it at the moment the block should disappear, or type the time. Blocks without a time stay." }),
-    section("removals", lanes, el("div", { class: "lanes" }, el("span"), axis, el("span"), el("span"))));
+    section("removals", lanes, el("div", { class: "lanes" }, el("span"), axis, el("span"), el("span"))), section("or", none));
 };
 
 // -- Kinetix: every motor and thruster, for the next stretch of time ------------------------
 
 CONTROLS.kinetix_vector = ({ space, set }) => {
   const values = new Array(space.num_motors + space.num_thrusters).fill(0);
+  let chosen = false; // nothing is sent until the person sets something (all off is a decision too)
   const boxes = [];
   const box = el("div");
   for (let i = 0; i < values.length; i++) {
     const motor = i < space.num_motors;
     const label = motor ? `M${i}` : `T${i - space.num_motors}`;
     const options = motor ? [[0, "off"], [1, "forward"], [2, "reverse"]] : [[0, "off"], [1, "on"]];
-    const c = choices(label, options, (v) => { values[i] = v; update(); });
+    const c = choices(label, options, (v) => { values[i] = v; chosen = true; update(); });
     boxes.push(c);
     box.append(section(`${label} (${motor ? "motor" : "thruster"})`, c));
   }
   function update() {
-    boxes.forEach((c, i) => c.mark((v) => v === values[i]));
-    set(`[${values.join(", ")}]`);
+    boxes.forEach((c, i) => c.mark((v) => chosen && v === values[i]));
+    run.classList.toggle("on", chosen);
+    set(chosen ? `[${values.join(", ")}]` : "");
   }
+  const run = el("button", { type: "button", "data-control": "as-set", text: values.length ? "as set (the rest off)" : "let it run",
+    onclick: () => { chosen = true; update(); } });
   update();
-  const none = values.length === 0 ? el("p", { class: "hint", text: "This level has nothing to control: act to let it run." }) : null;
-  return el("div", {}, el("p", { class: "hint", text: "Set every motor and thruster (labelled M and T on the annotated image); they hold these settings until your next decision." }), none, box);
+  const none = values.length === 0 ? el("p", { class: "hint", text: "This level has nothing to control: choose \"let it run\", then act." }) : null;
+  return el("div", {}, el("p", { class: "hint", text: "Set every motor and thruster (labelled M and T on the annotated image); they hold these settings until your next decision. Those you do not set are off." }), none, box, section("or", run));
 };
 
 // -- Pooltool: speed, and where the cue strikes the cue ball --------------------------------
@@ -249,7 +260,7 @@ CONTROLS.pooltool_shot = ({ set }) => {
 // -- Angry Birds: the launch angle and power; drag on the dial or set the numbers -----------
 
 CONTROLS.angrybirds_shoot = ({ set }) => {
-  let angle = 45, power = 0.7;
+  let angle = null, power = null; // no shot until the person sets both
   const R = 120;
   const arrow = svg("line", { x1: 10, y1: 140, stroke: "#d64545", "stroke-width": 4, "stroke-linecap": "round" });
   const dial = svg("svg", { class: "dial", width: 150, height: 150, viewBox: "0 0 150 150", "data-control": "dial" },
@@ -277,8 +288,10 @@ CONTROLS.angrybirds_shoot = ({ set }) => {
   dial.addEventListener("pointermove", drag);
   function update(source) {
     for (const [input, v] of [[angleIn, angle], [powerIn, power], [angleRange, angle], [powerRange, power]]) {
-      if (input !== source) input.value = decimal(v, 2);
+      if (input !== source && v !== null) input.value = decimal(v, 2);
     }
+    arrow.setAttribute("visibility", angle === null || power === null ? "hidden" : "visible");
+    if (angle === null || power === null) return set("");
     const a = angle * Math.PI / 180;
     arrow.setAttribute("x2", 10 + Math.cos(a) * R * power);
     arrow.setAttribute("y2", 140 - Math.sin(a) * R * power);

@@ -52,32 +52,43 @@ function replayLink(s, task, run, attempt, words) {
   return el("a", { href: `/replay?${q}`, target: "_blank", class: "replay", text: words });
 }
 
+function nounOf(s) {
+  return s.step_noun === "step" ? "decision" : s.step_noun;
+}
+
+// The latest decision: the person's own action; what it did comes with the next prompt, as
+// it comes to a model. Once the task's episode is over: its name, outcome and replay.
 function renderLast(s) {
   const box = $("#last");
   const last = s.last;
   box.hidden = !last;
-  if (!last || box.dataset.id === `${last.id}:${Boolean(last.record)}`) return;
-  box.dataset.id = `${last.id}:${Boolean(last.record)}`;
-  const noun = s.step_noun === "step" ? "decision" : s.step_noun;
-  const head = last.step ? `Your ${noun} ${last.step} in attempt ${last.attempt} of ${last.task}: ` : `Attempt ${last.attempt} of ${last.task}: `;
+  if (!last) return;
   const record = last.record;
-  box.replaceChildren(...[
-    el("h2", {}, head, last.text ? el("code", { text: last.text }) : null),
-    el("p", { class: "outcome" }, last.invalid_reason ? el("span", { class: "bad", text: `invalid: ${last.invalid_reason}. ` }) : null, last.feedback),
-    record ? el("p", { class: "outcome", "data-outcome": record.success ? "solved" : "failed" },
-      el("span", { class: record.success ? "ok" : "bad", text: record.success ? "Solved" : "Not solved" }),
-      record.stars !== null && record.stars !== undefined ? ` with ${record.stars} star(s)` : "",
-      ` (attempt ${last.attempt}). `, replayLink(s, last.task, last.run, last.attempt, "watch the replay")) : null,
-    el("div", { class: "frames" }, last.frames.map((f, i) => el("figure", {},
-      el("img", { src: `/api/last/${last.id}/${i}.png`, alt: f.caption, width: f.width, height: f.height }),
-      el("figcaption", { text: f.caption })))),
-  ].filter(Boolean));
+  const id = `${last.id}:${Boolean(last.attempt_over)}:${Boolean(record)}`;
+  if (box.dataset.id === id) return;
+  box.dataset.id = id;
+  const where = `task ${last.episode}, attempt ${last.attempt}`;
+  const head = last.text !== null && last.text !== undefined
+    ? el("p", { class: "outcome" }, last.step ? `Your ${nounOf(s)} ${last.step} (${where}): ` : `Your action (${where}): `, el("code", { text: last.text }))
+    : null;
+  const next = !record ? el("p", { class: "muted small", text: last.attempt_over
+    ? `Attempt ${last.attempt} ended without solving the task; the prompt below shows it as the model is shown it.`
+    : "What it did is in the prompt below, as the model is shown it." }) : null;
+  const over = record ? el("p", { class: "outcome", "data-outcome": record.success ? "solved" : "failed" },
+    el("span", { class: record.success ? "ok" : "bad", text: record.success ? "Solved" : "Not solved" }),
+    record.stars !== null && record.stars !== undefined ? ` with ${record.stars} star(s)` : "",
+    ` · task ${last.episode} was ${last.task} (run ${last.run}), attempt ${last.attempt}. `,
+    replayLink(s, last.task, last.run, last.attempt, "watch the replay")) : null;
+  const outcome = record && record.outcome ? el("p", { class: "muted small", text: record.outcome }) : null;
+  box.replaceChildren(...[head, next, over, outcome].filter(Boolean));
 }
 
+// A part of the prompt, as the model gets it: a text, or an image (no caption: a model gets none).
 function part(p) {
-  if (p.text !== undefined) return p.text.includes("\n") ? el("pre", { text: p.text }) : el("p", { text: p.text });
-  return el("figure", {}, el("img", { src: p.image, alt: p.caption, width: p.width, height: p.height }),
-    el("figcaption", { text: `${p.name}: ${p.caption}` }));
+  if (p.text !== undefined) {
+    return p.text.includes("\n") ? el("pre", { text: p.text, "data-part": p.part }) : el("p", { text: p.text, "data-part": p.part });
+  }
+  return el("img", { class: "prompt-image", src: p.image, alt: p.caption, width: p.width, height: p.height, "data-part": p.part, title: "click to enlarge", onclick: (e) => e.target.classList.toggle("big") });
 }
 
 function renderDecision(s) {
@@ -89,8 +100,8 @@ function renderDecision(s) {
   if (d.key === shownKey) { submit.disabled = s.busy || !checked.ok; return; }
   shownKey = d.key;
   box.dataset.key = d.key;
-  const noun = s.step_noun === "step" ? "decision" : s.step_noun;
-  $("#where").textContent = `${d.task} · attempt ${d.attempt} of ${s.max_attempts}` + (s.max_steps > 1 ? ` · ${noun} ${d.step} of at most ${s.max_steps}` : "");
+  // The task by its place, not its name (a name can hint at the solution; the model is not told it)
+  $("#where").textContent = `Task ${d.episode} of ${s.progress.episodes_total} · attempt ${d.attempt} of ${s.max_attempts}` + (s.max_steps > 1 ? ` · ${nounOf(s)} ${d.step}` : "");
   $("#system").textContent = d.system;
   $("#rules").open = d.step === 1 && d.attempt === 1;
   $("#history").hidden = d.before.length === 0;
@@ -100,8 +111,8 @@ function renderDecision(s) {
   const stages = {};
   const texts = [];
   const obs = d.observation.map((p) => {
-    if (p.text !== undefined) { texts.push(p.text); return part(p); }
-    const img = el("img", { src: p.image, alt: p.caption, width: p.width, height: p.height, "data-image": p.name });
+    if (p.text !== undefined) { if (p.part !== d.observation[0].part) texts.push(p.text); return part(p); }
+    const img = el("img", { src: p.image, alt: p.caption, width: p.width, height: p.height, "data-image": p.name, "data-part": p.part });
     const canvas = el("canvas", { "data-image": p.name });
     const stage = el("div", { class: "stage" }, img, canvas);
     stages[p.name] = { stage, img, canvas };
@@ -174,12 +185,12 @@ function tick() {
 function renderRecent(s) {
   const box = $("#recent");
   box.hidden = s.recent.length === 0;
-  const rows = s.recent.map((a) => el("tr", { "data-task": a.task, "data-attempt": a.attempt },
-    el("td", { text: a.task }), el("td", { text: `run ${a.run}` }), el("td", { text: `attempt ${a.attempt}` }),
-    el("td", {}, el("span", { class: a.success ? "ok" : "bad", text: a.success ? "solved" : a.invalid ? "invalid" : "not solved" }),
-      a.stars !== null && a.stars !== undefined ? ` ${a.stars}★` : ""),
+  const rows = s.recent.map((a) => el("tr", { "data-episode": a.episode, "data-attempt": a.attempt, "data-over": a.over ? "1" : "0" },
+    el("td", { text: a.over ? a.task : `task ${a.episode} (in play)` }), el("td", { text: `run ${a.run}` }), el("td", { text: `attempt ${a.attempt}` }),
+    el("td", {}, a.over ? el("span", { class: a.success ? "ok" : "bad", text: a.success ? "solved" : a.invalid ? "invalid" : "not solved" }) : el("span", { class: "bad", text: "not solved" }),
+      a.over && a.stars !== null && a.stars !== undefined ? ` ${a.stars}★` : ""),
     el("td", { text: `${a.decisions} decision(s)` }),
-    el("td", {}, replayLink(s, a.task, a.run, a.attempt, "replay"))));
+    el("td", {}, a.over ? replayLink(s, a.task, a.run, a.attempt, "replay") : el("span", { class: "muted small", text: "replay once the task is over" }))));
   $("#recent-table").replaceChildren(...rows);
 }
 
