@@ -2,7 +2,7 @@
 UV := python3 -m uv
 PYTEST_ARGS ?= -m "not slow"
 
-.PHONY: demo test test-all setup install
+.PHONY: demo test test-all setup install docs
 
 # Bytecode compiled at install: every Ray worker process imports Ray and the simulators, at
 # half the CPU with .pyc files (which PYTHONDONTWRITEBYTECODE=1 would never let Python write).
@@ -30,3 +30,7 @@ test: setup
 
 test-all: setup
 	$(UV) run --frozen pytest -m ""
+
+# The documentation site (docs/, mkdocs.yml) into site/; a test builds it with --strict too.
+docs: install
+	NO_MKDOCS_2_WARNING=1 $(UV) run --frozen mkdocs build --strict --quiet

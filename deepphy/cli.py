@@ -171,7 +171,7 @@ def build_parser(argv: list[str] | None = None):
                       help="run directories, or directories holding them (a suite root) up to three folders down")
     plot.add_argument("--out", required=True, help="directory for the figures")
 
-    repair = command("repair", help="set aside what a resume cannot go on from (see the README's Run directory)")
+    repair = command("repair", help="set aside what a resume cannot go on from (docs/running.md, the run directory)")
     repair.add_argument("run_dir", metavar="RUN_DIR")
 
     export = command("export", help="write the decisions of run directories as a Parquet dataset")

@@ -25,7 +25,7 @@ from deepphy.envs.pooltool.space import ACTIONS, SPOT_OFFSETS, SPOTS, PoolShot, 
 
 REPO = Path(__file__).resolve().parents[1]
 
-# Recorded once by an offline search over all 27 actions per shot (see the README). The
+# Recorded once by an offline search over all 27 actions per shot (docs/environments.md). The
 # assertions are on what pooltool simulates for them, not on the search.
 WIN_IN_7 = (0, [  # rack_000: every shot pots, the 7th pots the 9-ball
     "Speed: Medium, Strikespot: top-right",

@@ -6,7 +6,7 @@ it with the same loop as its `simulate()` (one click fires per 1/60 s step, in t
 order, a click is the centre of an eliminable block), pausing only to take key frames.
 Rendering is ours, with OpenCV from the live pymunk state, so no display is needed.
 
-Decisions (documented in the README):
+Decisions (documented in docs/environments.md):
 - A plan is a JSON array of {"time": seconds, "index": block}. The empty array is a
   valid plan (do nothing): `spring_flick` is solved that way.
 - `time` must satisfy 0 <= time < 15. iphyre silently ignores a click at exactly t = 0

@@ -7,7 +7,7 @@ lasts ~0.53 s). Kinetix ends an episode after 256 env steps, so an attempt has a
 decisions. Success = a green shape touches a blue one (kinetix's info["GoalR"]); touching
 red, or running out of time, fails.
 
-Decisions (documented in the README):
+Decisions (documented in docs/environments.md):
 - Controls follow the level's actual bindings. Kinetix's MultiDiscrete action has 4 motor
   and 2 thruster slots ("bindings"); all joints/thrusters sharing a binding move together,
   unused slots do nothing, and some levels use binding 1 but not 0. Our control M<i> is

@@ -6,7 +6,7 @@ the cue speed and where the tip strikes the cue ball. The physics and the nine-b
 are pooltool's own (`pt.simulate` with an explicit engine, pooltool's NINEBALL ruleset);
 the rack, the ball-in-hand placement and the rendering are ours.
 
-Decisions (documented in the README):
+Decisions (documented in docs/environments.md):
 - Actions: `Speed: Low|Medium|High` = cue speed 2 / 5 / 8 m/s, and `Strikespot:` one of
   nine spots on the cue ball as the shooter sees it. Edge spots sit half a ball radius
   from the centre on an axis, corner spots at +-0.35 on both axes (radius 0.495, the
