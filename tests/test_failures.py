@@ -408,7 +408,6 @@ def test_four_local_runs_started_at_once_all_complete(tmp_path):
 def test_a_run_on_saturated_cores_starts_or_fails_with_one_line(tmp_path):
     """Both cores busy with a loop each (at the run's own priority): the run completes, or
     ends with one line that says why; never a traceback."""
-    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
     loops = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
     try:
         done = cli("run", "--tasks", "support,hinder", "--runs", "1", "--out", str(tmp_path / "run"), timeout=1500)

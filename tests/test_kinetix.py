@@ -8,6 +8,7 @@ The fast tests run the S size only; M and L known-good runs are marked slow.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -347,7 +348,7 @@ def test_kinetix_outside_a_run_prints_none_of_xlas_cache_log(tmp_path):
     """Through Gymnasium and `--dry-run` (a run sends it to logs/), a Kinetix simulation
     loaded from the compilation cache printed an XLA error line per program: 128 lines for
     a `gymnasium.make`. The first command fills the cache (a cold one compiles, quietly)."""
-    env = {**os.environ, "DEEPPHY_CACHE_DIR": str(CACHE)}
+    env = dict(os.environ)  # conftest pinned DEEPPHY_CACHE_DIR to the warmed cache
     env.pop("TF_CPP_MIN_LOG_LEVEL", None)
     warm = subprocess.run([sys.executable, "-c", GYM_KINETIX], capture_output=True, text=True, timeout=900, env=env)
     assert warm.returncode == 0 and "stepped" in warm.stdout, warm.stderr[-2000:]

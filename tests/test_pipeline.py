@@ -294,7 +294,6 @@ def test_watch_streams_a_live_runs_snapshot(ray_cluster, tmp_path, capsys):
 def test_on_the_fly_episodes_through_ray(ray_cluster, tmp_path, env, tasks):
     """Multi-decision attempts through real Ray: records hold every decision, prompts show the
     earlier decisions of the attempt, and the worker steps waiting episodes together."""
-    import json
 
     config = RunConfig(env=env, model="mock", runs=2, seed=5, tasks=tasks)
     outcome = evaluate(config, tmp_path, RuntimeOptions(progress=False, env_workers=1, max_in_flight=16))
