@@ -455,9 +455,10 @@ def test_observation_shows_ids_state_and_what_can_be_used():
     image = obs.images[0]
     assert image.size == (C.WIDTH, C.HEIGHT) and image.name == "scene"
     text = obs.text
-    assert "Action 1 of at most 10" in text and "You can now:" in text and "Om Nom" in text
+    assert "Decision 1 of at most 10" in text and "You can now:" in text and "1 spider (on the rope of P1)" in text
+    assert f"{len(level.pins)} pin (P1); 1 bubble (B1); 1 air cushion (C1)" in text
     for k in range(1, len(level.pins) + 1):
-        assert f"P{k} (" in text and f"cut_pin({k})" in text
+        assert f"cut_pin({k})" in text
     space = obs.action_space
     assert space.num_pins == len(level.pins) and space.pins == list(range(1, len(level.pins) + 1))
     first = space.parse(space.format(space.element_actions()[0]))
@@ -764,7 +765,7 @@ def test_prompt_states_legend_rules_numbers_and_a_valid_example():
     for needle in ("cut_pin(id)", "cut_active_pin(id)", "pop_bubble(id)", "tap_air_cushion(id, times=n)",
                    "sleep(seconds)", "success()", "fail()", "1, 3, 5", f"{C.MAX_ACTIONS} actions",
                    f"{C.ACTION_INTERVAL:g} s", f"{C.RUN_ON_CAP:g} s", "Spiders", "Magic hats", "Bubbles", "stars",
-                   f"{C.GRAVITY:g} px/s^2", f"{C.OMNOM_RADIUS:g} px)", "cut_pin(2, 3)", "hook"):
+                   "cut_pin(2, 3)", "hook", "Advice", "top of\na swing"):
         assert needle in rules, needle
     obs.action_space.parse(prompt.example(obs))
     for fmt in PromptFormat:
@@ -788,9 +789,75 @@ def test_the_prompts_examples_win_no_level():
 
 
 def test_taut_is_said_only_of_a_stretched_rope():
-    from deepphy.envs.cuttherope.env import describe
+    from deepphy.envs.cuttherope.env import describe_state
 
     w = world_of(make(candies=[{"pos": (240, 300)}], pins=[{"pos": (240, 150), "length": 150.56},
                                                            {"pos": (100, 300), "length": 100}]))
-    text = describe(w, 0)
+    text = describe_state(w, 0)
     assert "P1 (rest length 151, slack by 0.6 px" in text and "P2 (rest length 100, taut, stretched 40.0 px" in text
+
+
+# -- information parity (the paper's prompt: ../shared/notes/paper-prompts.md, section 6) ----------------
+
+# Levels with every kind of element between them: spider, bubble, cushion (b2_l20); hook, barrier
+# (b3_l04); hats, barrier, spider, hook (b4_l15); halves, hook, spider (b5_l18); active pin,
+# spikes (b1_l19); walls (b3_l03).
+PARITY_LEVELS = ["b2_l20", "b3_l04", "b4_l15", "b5_l18", "b1_l19", "b3_l03"]
+NUMBER = re.compile(r"(?<![A-Za-z_])\d+(?:\.\d+)?")
+CALL = re.compile(r"\b[a-z_]+\([^()]*\)")
+
+
+def parity_prompts(level_id: str, state_text: bool) -> list[str]:
+    """The texts of the prompts a model gets on `level_id`, both formats: the first request,
+    one after an earlier decision, and one after a failed attempt; and the actions in them."""
+    from deepphy.chat import PromptFormat
+    from deepphy.envs.cuttherope.env import CutTheRopeEnv
+    from deepphy.prompts import build_messages
+    from deepphy.prompts.base import PastAttempt, PastStep
+
+    spec = get_spec("cuttherope")
+    prompt = spec.load_prompt()
+    options = CutTheRopeEnv.Options(state_text=state_text)
+    task = next(t for t in CutTheRopeEnv.tasks(options) if t.id == level_id)
+    env = CutTheRopeEnv(options)
+    first = env.reset(task)
+    plan = load_level(level_id).solution.actions
+    action = first.action_space.parse(plan[0])
+    result = env.step(action)
+    later = result.observation if result.observation is not None else first
+    recent = [PastStep(step=1, action=first.action_space.format(action), feedback=result.feedback,
+                       frame=first.images[0])] if result.observation is not None else []
+    env.reset(task)
+    lost = env.step(first.action_space.parse("fail()"))
+    failed = [PastAttempt(attempt=1, actions=["fail()"], outcome=lost.feedback, key_frames=lost.key_frames)]
+    texts = []
+    for fmt in PromptFormat:
+        for history, observation, steps in (([], first, []), ([], later, recent), (failed, first, [])):
+            messages = build_messages(prompt, fmt, task, observation, history, steps)
+            texts.append("\n".join(m.text for m in messages)
+                         + "\n" + "\n".join(i.caption for m in messages for i in m.images))
+    return texts
+
+
+@pytest.mark.parametrize("level_id", PARITY_LEVELS)
+def test_default_prompts_carry_no_numeric_state(level_id):
+    # The paper's prompt gives images, labels, counts, the action history, the menu, a glossary, the
+    # rules and advice: no coordinates, lengths, speeds, distances, physical constants or timings. The
+    # numbers left are ids, counts and the rules' own (at most 10 actions, 0.25 s after each, sleep
+    # 0.1-10 s, 1/3/5 puffs, a run-on of 10 s, 0-3 stars) and the seconds of a sleep the model chose.
+    allowed = {str(n) for n in range(11)} | {f"{C.SLEEP_MIN:g}", f"{C.ACTION_INTERVAL:g}"}
+    for text in parity_prompts(level_id, state_text=False):
+        chosen = {n for call in CALL.findall(text) for n in NUMBER.findall(call)}
+        numbers = set(NUMBER.findall(re.sub(r"\bb\d_l\d\d\b", "", text))) - allowed - chosen
+        assert not numbers, (level_id, sorted(numbers))
+        for word in ("px", "t = ", "velocity", "rest length", "radius", "deg", "candy weights"):
+            assert word not in text, (level_id, word)
+
+
+def test_state_text_restores_the_numbers():
+    default = parity_prompts("b3_l04", state_text=False)
+    numeric = parity_prompts("b3_l04", state_text=True)
+    for text in numeric:
+        assert f"{C.GRAVITY:g} px/s^2" in text and "t = " in text
+    assert any("rest length" in t and "velocity" in t and "switches in" in t for t in numeric)
+    assert len(default) == len(numeric) == 6
