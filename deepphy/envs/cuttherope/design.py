@@ -11,7 +11,10 @@ its new mechanics and ends with levels that combine them with the earlier ones.
 
 Helpers: `rope` describes a pin and its rope; `make` builds a level, giving every loaded
 rope the rest length that holds the candy still (candies start at rest unless a level's
-idea says otherwise), slack ropes their slack and stretched ropes their stretch.
+idea says otherwise), slack ropes their slack and stretched ropes their stretch, and
+numbering each kind of element the model acts on (pins, active pins, bubbles, cushions) in
+an order drawn from the level's id, unrelated to the design's order or the solution. The
+ideas therefore speak of elements by place ("the left rope"), never by id.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import math
 
 from deepphy.envs.cuttherope import constants as C
 from deepphy.envs.cuttherope.level import BOXES, Level
+from deepphy.seeding import seeded_rng
 
 Point = tuple[float, float]
 
@@ -53,8 +57,21 @@ def make(id: str, title: str, idea: str, *, candies: list, ropes: list[dict] = (
         if r["track"] is not None:
             pin["track"] = r["track"]
         pins.append(pin)
-    return Level.model_validate({"id": id, "title": title, "idea": idea, "candies": specs, "pins": pins,
-                                 "om_nom": om_nom, "stars": stars, **elements})
+    numbered = {kind: _shuffled(id, kind, items) for kind, items in {
+        "pins": pins, **{k: list(elements.get(k, ())) for k in ACTED_ON_KINDS[1:]}}.items()}
+    return Level.model_validate({"id": id, "title": title, "idea": idea, "candies": specs, "om_nom": om_nom,
+                                 "stars": stars, **elements, **numbered})
+
+
+ACTED_ON_KINDS = ("pins", "active_pins", "bubbles", "cushions")  # the elements an action names by id
+
+
+def _shuffled(level_id: str, kind: str, items: list) -> list:
+    """The elements of one kind in the order that numbers them (1, 2, ...): a permutation of
+    the design's order drawn from the level's id and the kind, so that an id tells nothing
+    (the design lists elements in whatever order it thinks of them, often the solution's)."""
+    order = seeded_rng("cuttherope-ids", level_id, kind).permutation(len(items))
+    return [items[k] for k in order]
 
 
 def _anchor(r: dict) -> Point:
@@ -234,7 +251,7 @@ BOX1: list[Level] = [
          candies=[(200, 250)], ropes=[rope(100, 130), rope(320, 150)], active_pins=[{"pos": (320, 400), "radius": 100}],
          spikes=[spikes((370, 450), (370, 680))], om_nom=(430, 600), stars=[(260, 300), (380, 300), (430, 420)]),
     make("b1_l20", "Together",
-         "Cut either rope alone and the other swings the candy into spikes. Cut both in one swipe, cut_pin(1, 2), "
+         "Cut either rope alone and the other swings the candy into spikes. Cut both in one swipe "
          "and it drops straight to Om Nom.",
          candies=[(240, 300)], ropes=[rope(100, 180), rope(380, 180)],
          spikes=[spikes((60, 330), (60, 560)), spikes((420, 330), (420, 560))], om_nom=(240, 620),
