@@ -232,16 +232,22 @@ def act(world: World, action: CutAction) -> str:
         return f"you {said}: the world runs on (at most {C.RUN_ON_CAP:g} s) and the game decides"
     if action.name == "sleep":
         words = f"the world runs for {action.seconds:g} s"
-    elif action.name == "cut_pin":
-        words = "; ".join(world.cut_pin(i) for i in action.ids)
-    elif action.name == "cut_active_pin":
-        words = "; ".join(world.cut_active_pin(i) for i in action.ids)
-    elif action.name == "pop_bubble":
-        words = world.pop_bubble(action.ids[0])
     else:
-        words = world.tap_air_cushion(action.ids[0], action.times)
+        words = apply(world, action)
     world.advance(seconds_to_steps(action.seconds if action.name == "sleep" else C.ACTION_INTERVAL))
     return words
+
+
+def apply(world: World, action: CutAction) -> str:
+    """What an element action does at the moment it is taken (the world does not run)."""
+    if action.name == "cut_pin":
+        return "; ".join(world.cut_pin(i) for i in action.ids)
+    if action.name == "cut_active_pin":
+        return "; ".join(world.cut_active_pin(i) for i in action.ids)
+    if action.name == "pop_bubble":
+        return world.pop_bubble(action.ids[0])
+    assert action.name == "tap_air_cushion", action
+    return world.tap_air_cushion(action.ids[0], action.times)
 
 
 def format_action(action: CutAction) -> str:
