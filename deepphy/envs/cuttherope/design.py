@@ -152,23 +152,29 @@ BOX1: list[Level] = [
          "Cut the rope and the candy falls straight to Om Nom, through the three stars.",
          candies=[(240, 200)], ropes=[rope(240, 80)], om_nom=(240, 600),
          stars=[(240, 300), (240, 390), (240, 480)]),
-    make("b1_l02", "Which rope?",
-         "Two ropes hold the candy: cut the one on the left and the other swings it into Om Nom; cut the "
-         "other and it swings away from him.",
-         candies=[(240, 280)], ropes=[rope(80, 120), rope(400, 120)], om_nom=(400, 398),
-         stars=[(284, 314), (319, 331), (357, 342)]),
-    make("b1_l03", "A slack rope catches",
-         "Cut the short rope: the candy falls until the long slack rope catches it, and swings on it to Om Nom.",
-         candies=[(150, 200)], ropes=[rope(150, 100), rope(330, 140, slack=120)], om_nom=(330, 505),
-         stars=[(150, 300), (199, 421), (266, 443)]),
+    make("b1_l02", "One, then the other",
+         "Two ropes hold the candy up; a long slack rope hangs from a pin on the right. Cut the left rope and, at "
+         "once after, the right one: the candy, just starting to swing, falls into the slack rope's reach, which "
+         "catches it and swings it through the stars into Om Nom. Cut both at the same moment and it drops too "
+         "straight; let go later and it swings too far; cut the slack rope and nothing catches it.",
+         candies=[(160, 200)], ropes=[rope(50, 120), rope(230, 80), rope(300, 300, slack=120)], om_nom=(360, 520),
+         stars=[(218, 351), (235, 466), (254, 604)]),
+    make("b1_l03", "The other way round",
+         "As in the level before, but mirrored and lower: cut the right rope and, at once after, the left one, and "
+         "the slack rope on the left catches the candy and swings it down through the stars into Om Nom. The other "
+         "order swings the candy the wrong way; both at once drop it straight past the slack rope's swing.",
+         candies=[(320, 180)], ropes=[rope(200, 60), rope(460, 90), rope(120, 300, slack=120)], om_nom=(80, 580),
+         stars=[(250, 362), (223, 521), (208, 642)]),
     make("b1_l04", "Let go on the swing",
          "Cut the rope above the candy and it swings on the other; let it go when the swing throws it toward Om Nom.",
          candies=[(80, 200)], ropes=[rope(80, 100), rope(200, 80, slack=0)], om_nom=(400, 450),
          stars=[(140, 245), (290, 290), (350, 360)]),
     make("b1_l05", "Up with a bubble",
-         "Cut the rope: the candy drops into the bubble, which carries it up through the stars into Om Nom.",
-         candies=[(240, 500)], ropes=[rope(240, 380)], bubbles=[{"pos": (240, 590)}], om_nom=(240, 100),
-         stars=[(240, 340), (240, 260), (240, 190)]),
+         "Cut the rope above the candy: it drops into the bubble, which carries it up until the slack rope on the "
+         "right comes taut and swings it round, floating, toward the top of its pin. Let it go under Om Nom and it rises "
+         "into him; let it go at once and it floats straight up past him.",
+         candies=[(120, 400)], ropes=[rope(120, 280), rope(300, 460, slack=40)], bubbles=[{"pos": (120, 480)}],
+         om_nom=(240, 100), stars=[(120, 330), (185, 262), (243, 175)]),
     make("b1_l06", "Steer the bubble",
          "The candy starts in a bubble held down by two ropes. Cut one and the bubble drifts over the other pin; "
          "cut the second when the bubble is under Om Nom and it rises straight to him.",
@@ -181,40 +187,43 @@ BOX1: list[Level] = [
          candies=[(120, 300)], bubbles=[{"pos": (120, 300)}], ropes=[rope(40, 420), rope(265, 420)],
          om_nom=(265, 520), stars=[(170, 240), (245, 220), (265, 330)]),
     make("b1_l08", "Throw it into the bubble",
-         "Cut the rope above the candy and, at once, the other one: the candy, barely swinging yet, drops into the "
-         "bubble under Om Nom, which carries it up through the stars into him. Let go a moment later and the swing "
-         "throws the candy at Om Nom directly, past every star; cut the other rope first and it drops straight down, "
-         "wide of the bubble.",
-         candies=[(110, 180)], ropes=[rope(110, 100), rope(230, 100, slack=0)], bubbles=[{"pos": (240, 560)}],
-         om_nom=(260, 340), stars=[(176, 360), (234, 490), (234, 425)]),
+         "Cut the rope above the candy and, at once after, the other one: the candy, just starting to swing, drops "
+         "into the bubble, which carries it up through the stars into Om Nom. Cut both at the same moment and it "
+         "drops straight past the bubble; let go later and the swing throws it past; cut the other rope first and "
+         "it swings the wrong way.",
+         candies=[(110, 220)], ropes=[rope(110, 140), rope(230, 140, slack=0)], bubbles=[{"pos": (200, 500)}],
+         om_nom=(220, 100), stars=[(184, 455), (212, 504), (212, 312)]),
     make("b1_l09", "The rope steers the bubble",
-         "The bubble lifts the candy straight up until the slack rope comes taut; then the rope turns it, floating, "
-         "around its pin to Om Nom.",
-         candies=[(90, 300)], ropes=[rope(90, 190), rope(230, 300, slack=30)], bubbles=[{"pos": (90, 400)}],
-         om_nom=(250, 120), stars=[(90, 235), (120, 150), (180, 120)]),
+         "Cut the rope above the candy: it drops into the bubble and floats up, until the slack rope on the right "
+         "comes taut and swings it round, floating, through the stars and just past Om Nom. Pop the bubble as it "
+         "passes over him and the candy drops into him; pop it early and it drops short of him, late and the rope "
+         "swings it past him.",
+         candies=[(80, 340)], ropes=[rope(80, 250), rope(360, 400, slack=40)], bubbles=[{"pos": (80, 440)}],
+         om_nom=(194, 201), stars=[(80, 410), (80, 290), (116, 183)]),
     make("b1_l10", "An automatic rope",
          "Cut the rope: as the falling candy enters the dashed circle, the automatic rope grabs it and swings it "
-         "over to Om Nom.",
-         candies=[(110, 160)], ropes=[rope(110, 60)], active_pins=[{"pos": (200, 400), "radius": 110}],
-         om_nom=(320, 500), stars=[(110, 270), (170, 500), (260, 500)]),
+         "round. Let go of the automatic rope as the swing carries the candy up toward Om Nom and it flies into "
+         "him; hold on and the swing carries it back.",
+         candies=[(80, 160)], ropes=[rope(80, 60)], active_pins=[{"pos": (140, 360), "radius": 130}],
+         om_nom=(313, 456), stars=[(80, 332), (80, 455), (174, 479)]),
     make("b1_l11", "Stop the bubble",
          "The bubble would carry the candy off the top; the automatic rope catches it on the way and holds it "
          "floating. Pop the bubble then, and the rope swings the candy down to Om Nom.",
          candies=[(100, 560)], ropes=[rope(100, 460)], bubbles=[{"pos": (100, 640)}],
          active_pins=[{"pos": (200, 250), "radius": 120}], om_nom=(345, 300), stars=[(100, 380), (130, 172), (250, 390)]),
     make("b1_l12", "A stretched rope",
-         "Two red ropes pull against each other. Cut the lower one: the upper one contracts and throws the candy up "
-         "past its pin, catches it and swings it back down into Om Nom. Let go of it in flight and the candy flies "
-         "off the right edge.",
-         candies=[(140, 520)], ropes=[rope(40, 627, balance=True), rope(280, 380, stretch=35)], om_nom=(330, 590),
-         stars=[(230, 445), (440, 385), (370, 470)]),
+         "Two ropes pull against each other, the upper one red: stretched. Cut the lower one: the red rope contracts "
+         "and throws the candy up past its pin, catches it and swings it back. Let go of it on the swing back and "
+         "the candy flies left into Om Nom; let go in the throw and it flies off, hold on and it swings on.",
+         candies=[(180, 480)], ropes=[rope(80, 580, balance=True), rope(260, 300, stretch=45)], om_nom=(75, 492),
+         stars=[(319, 232), (327, 310), (271, 451)]),
     make("b1_l13", "Slingshot to a rope",
          "Cut the lower rope and at once the red one: the red rope slings the candy up into the automatic rope's "
-         "circle, which catches it at the top, over Om Nom. Let go there and it drops to him, missing the stars on the "
-         "circle; let it swing round once through them first, and let go as it swings back toward him. Keep the red "
-         "rope a moment longer and it pulls the candy back; wait too long and the swing throws it past him.",
-         candies=[(110, 620)], ropes=[rope(30, 700, balance=True), rope(200, 500, stretch=45)],
-         active_pins=[{"pos": (270, 390), "radius": 85}], om_nom=(370, 560), stars=[(180, 535), (190, 426), (314, 353)]),
+         "circle, which catches it and swings it round through the stars. Let go as it swings back down toward Om "
+         "Nom. Keep the red rope and it pulls the candy back; let go of the automatic rope too soon or too late and "
+         "the swing throws the candy past him.",
+         candies=[(90, 620)], ropes=[rope(10, 700, balance=True), rope(160, 520, stretch=35)],
+         active_pins=[{"pos": (260, 440), "radius": 70}], om_nom=(202, 598), stars=[(222, 480), (325, 437), (234, 503)]),
     make("b1_l14", "Tug of war",
          "Two stretched ropes pull the candy both ways. Cut one and the other throws the candy past its pin; the "
          "right one's swing brings it round to Om Nom, the left one's away from him.",
@@ -238,10 +247,11 @@ BOX1: list[Level] = [
          candies=[(200, 250)], ropes=[rope(120, 150), rope(330, 120)], spikes=[spikes((110, 310), (205, 310))],
          om_nom=(180, 440), stars=[(290, 305), (330, 330), (250, 370)]),
     make("b1_l18", "Throw over the spikes",
-         "A row of spikes stands between the candy and Om Nom. The red rope can throw the candy over it, if you let "
-         "go at the right moment.",
-         candies=[(90, 500)], ropes=[rope(20, 560, balance=True), rope(190, 380, stretch=40)],
-         spikes=[spikes((290, 520), (290, 700))], om_nom=(390, 640), stars=[(150, 440), (250, 360), (350, 520)]),
+         "A row of spikes stands between the candy and Om Nom. Cut the lower rope: the red rope throws the candy up "
+         "past its pin and swings it back and forth; let go as a swing carries it right, high enough to clear the "
+         "spikes, and it falls into Om Nom.",
+         candies=[(90, 520)], ropes=[rope(0, 630, balance=True), rope(250, 320, stretch=50)],
+         spikes=[spikes((217, 587), (217, 710))], om_nom=(305, 607), stars=[(388, 248), (314, 431), (104, 463)]),
     make("b1_l19", "Not that rope",
          "Cut the left rope and the candy swings out on the right one, toward Om Nom behind a row of spikes; but "
          "the automatic rope lies across the swing: it grabs the candy and, left holding it alone, swings it into "
@@ -251,17 +261,19 @@ BOX1: list[Level] = [
          candies=[(200, 250)], ropes=[rope(100, 130), rope(320, 150)], active_pins=[{"pos": (320, 400), "radius": 100}],
          spikes=[spikes((370, 450), (370, 680))], om_nom=(430, 600), stars=[(260, 300), (380, 300), (430, 420)]),
     make("b1_l20", "Together",
-         "Cut either rope alone and the other swings the candy into spikes. Cut both in one swipe "
-         "and it drops straight to Om Nom.",
-         candies=[(240, 300)], ropes=[rope(100, 180), rope(380, 180)],
-         spikes=[spikes((60, 330), (60, 560)), spikes((420, 330), (420, 560))], om_nom=(240, 620),
-         stars=[(240, 380), (240, 450), (240, 530)]),
+         "Cut the rope above the candy: it falls into the two slack ropes, swings and settles between them, over Om "
+         "Nom. Then cut both in one swipe and it drops straight into him; cut one alone and the other swings it into "
+         "the spikes, cut all three at once and it drops past him.",
+         candies=[(190, 240)], ropes=[rope(190, 140), rope(60, 200, slack=170), rope(400, 200, slack=50)],
+         spikes=[spikes((40, 450), (40, 650)), spikes((440, 420), (440, 620))], om_nom=(300, 640),
+         stars=[(190, 330), (260, 400), (300, 540)]),
     make("b1_l21", "Twin slingshot",
-         "Two red ropes pull the candy up against the rope below. Cut the lower one and they throw it up through a "
-         "star and past their pins; let both go in one swipe, whenever you like, and it falls straight back, through "
-         "the others, to Om Nom. Let go of one alone and the other pulls the candy aside.",
-         candies=[(240, 380)], ropes=[rope(120, 260, stretch=25), rope(360, 260, stretch=25), rope(240, 560, balance=True)],
-         om_nom=(240, 650), stars=[(240, 300), (240, 480), (200, 590)]),
+         "Two red ropes pull the candy up against the rope below. Cut the lower one and they throw it up between "
+         "their pins; let go of the left one as it flies (or of both, a moment later) and it sails on through the "
+         "stars into Om Nom, high on the right. Let go of the right one and the left pulls the candy away; of both "
+         "at once, too soon, and it falls short.",
+         candies=[(220, 500)], ropes=[rope(120, 300, stretch=35), rope(320, 380, stretch=15), rope(220, 710, balance=True)],
+         om_nom=(384, 311), stars=[(182, 355), (205, 301), (274, 264)]),
     make("b1_l22", "Two now, one later",
          "Three ropes: cut two now, the left one among them, and the third swings the candy out to the right; let "
          "go of it near the far end of the swing and it drops through the stars into Om Nom. Let go at once and it "
