@@ -352,10 +352,11 @@ BOX2: list[Level] = [
          candies=[(160, 420)], ropes=[rope(160, 260)], cushions=[cushion(30, 420, 0)], bubbles=[{"pos": (300, 360)}],
          om_nom=(330, 80), stars=[(240, 420), (320, 270), (340, 170)]),
     make("b2_l09", "A spider",
-         "A spider crawls down the rope that holds the candy. Cut that rope before it arrives: the slack rope "
-         "catches the candy and swings it to Om Nom.",
-         candies=[(150, 200)], ropes=[rope(150, 80, spider=0.5), rope(330, 140, slack=120)], om_nom=(330, 505),
-         stars=[(150, 300), (199, 421), (266, 443)]),
+         "A spider crawls down the rope that holds the candy. Cut that rope before it arrives: the candy falls, the "
+         "slack rope catches it and swings it toward Om Nom; let go of it on the way and the candy flies on through "
+         "the stars into him. Hold on and the swing carries it back; let go at once and it falls short.",
+         candies=[(150, 200)], ropes=[rope(150, 100, spider=0.5), rope(350, 160, slack=80)], om_nom=(390, 566),
+         stars=[(150, 346), (225, 410), (308, 471)]),
     make("b2_l10", "Race the spider",
          "A spider comes down the rope on the left: cut it before it arrives, and the candy swings on the other "
          "rope; let go of that one at the right point of the swing.",
@@ -368,10 +369,10 @@ BOX2: list[Level] = [
          candies=[(240, 240)], ropes=[rope(225, 140, spider=0.0), rope(400, 190), rope(320, 70, slack=40)],
          om_nom=(150, 600), stars=[(410, 280), (217, 330), (173, 442)]),
     make("b2_l12", "Escape upward",
-         "A spider is coming down the rope: cut it, and the bubble under the candy carries it up out of reach, "
-         "to Om Nom.",
-         candies=[(300, 480)], ropes=[rope(300, 330, spider=0.0)], bubbles=[{"pos": (300, 570)}], om_nom=(300, 90),
-         stars=[(300, 380), (300, 280), (300, 180)]),
+         "A spider is coming down the rope: cut it, and the bubble under the candy carries it up out of reach. Om Nom "
+         "waits off to the left: puff the bubble over as it rises past the cushion, hard enough to reach him.",
+         candies=[(340, 500)], ropes=[rope(340, 350, spider=0.0)], bubbles=[{"pos": (340, 590)}],
+         cushions=[cushion(460, 320, 180)], om_nom=(145, 281), stars=[(340, 531), (340, 420), (249, 361)]),
     make("b2_l13", "Puff away from the spider",
          "A spider comes down the only rope. Puff the candy into a swing, and cut the rope at the top of the swing, "
          "over Om Nom, before the spider arrives. A weak swing let go early falls short, onto the spikes.",
@@ -399,11 +400,12 @@ BOX2: list[Level] = [
          candies=[(90, 560)], bubbles=[{"pos": (90, 560)}], ropes=[rope(90, 660)], cushions=[cushion(20, 330, 0)],
          spikes=[spikes((30, 150), (190, 150)), spikes((310, 150), (460, 150))], om_nom=(250, 60),
          stars=[(90, 420), (180, 300), (250, 200)]),
-    make("b2_l18", "Cut two, before the spider",
-         "Two ropes hold the candy right above Om Nom, a spider on one of them: cut both in one swipe and the candy "
-         "drops straight through the stars; one at a time, it swings off the line.",
-         candies=[(240, 280)], ropes=[rope(120, 160, spider=0.5), rope(360, 160)], om_nom=(240, 630),
-         stars=[(240, 380), (240, 460), (240, 540)]),
+    make("b2_l18", "The spider's rope first",
+         "Two ropes hold the candy, a spider coming down the left one. Cut that one first: the right one swings the "
+         "candy out; let go as the swing carries it up toward Om Nom and it flies on through the stars into him. Cut the right one first and the candy waits for the "
+         "spider; cut both at once and it drops far from him.",
+         candies=[(200, 280)], ropes=[rope(60, 140, spider=0.0), rope(300, 120)], om_nom=(361, 423),
+         stars=[(280, 308), (345, 304), (372, 320)]),
     make("b2_l19", "Swing over the spikes",
          "Puff the candy into a bigger swing than its rope alone would give, and cut it at the top: it clears the "
          "spikes and lands in Om Nom.",
@@ -507,57 +509,59 @@ BOX4: list[Level] = [
          candies=[(100, 160)], ropes=[rope(100, 60)], hats=[hats((100, 420), 90, (360, 200), 270)], om_nom=(360, 600),
          stars=[(100, 300), (360, 330), (360, 460)]),
     make("b4_l02", "Out sideways",
-         "Drop the candy straight into the hat, both ropes in one swipe (either alone swings it off the line): the "
-         "second hat faces sideways and shoots it across, as fast as it fell, to Om Nom.",
-         candies=[(80, 150)], ropes=[rope(20, 60), rope(140, 60)], hats=[hats((80, 560), 90, (160, 300), 0)],
-         om_nom=(450, 335),
-         stars=[(80, 300), (300, 305), (390, 322)]),
+         "The hat is not under the candy. Cut the left rope and let the right one swing the candy out; let go when "
+         "its flight ends in the hat: the second hat faces sideways and shoots it across, as fast as it fell, to Om "
+         "Nom. Both ropes at once drop it past the hat.",
+         candies=[(110, 200)], ropes=[rope(50, 100), rope(170, 110)], hats=[hats((240, 520), 90, (180, 320), 0)],
+         om_nom=(392, 339), stars=[(225, 285), (226, 432), (238, 320)]),
     make("b4_l03", "As fast as it went in",
          "The exit hat points up at Om Nom, high above it. The candy leaves as fast as it entered: let the bubble "
          "take it high before you pop it, so that it falls fast enough.",
          candies=[(100, 560)], bubbles=[{"pos": (100, 560)}], ropes=[rope(100, 660)],
          hats=[hats((100, 640), 90, (360, 620), 90)], om_nom=(360, 90), stars=[(100, 330), (100, 200), (360, 330)]),
     make("b4_l04", "Two pairs",
-         "Two pairs of hats, told apart by their colours. Drop the candy straight into the first (both ropes in one "
-         "swipe): it throws the candy into the second, and the second to Om Nom.",
-         candies=[(240, 120)], ropes=[rope(160, 40), rope(320, 40)],
-         hats=[hats((240, 330), 90, (80, 200), 0), hats((360, 300), 180, (260, 450), 270)],
-         om_nom=(260, 620), stars=[(240, 230), (300, 255), (260, 530)]),
+         "Two pairs of hats, told apart by their colours. Cut the left rope and let the right one swing the candy "
+         "over; let go when its fall ends in the first hat: its pair throws the candy up into the second pair's "
+         "hat, and that one drops it to Om Nom. Both ropes at once drop it straight, past the hats.",
+         candies=[(240, 120)], ropes=[rope(150, 20), rope(300, 40)],
+         hats=[hats((340, 380), 90, (420, 300), 180), hats((340, 243), 90, (420, 470), 270)],
+         om_nom=(420, 620), stars=[(390, 277), (340, 163), (420, 545)]),
     make("b4_l05", "Up into the hat",
          "A bubble carries the candy up into a hat that opens downward; its pair lets the bubble out sideways. Pop "
          "it then, over Om Nom.",
          candies=[(120, 520)], ropes=[rope(120, 400)], bubbles=[{"pos": (120, 600)}],
          hats=[hats((120, 180), 270, (340, 160), 0)], om_nom=(440, 620), stars=[(120, 350), (120, 250), (440, 400)]),
     make("b4_l06", "Puff into the hat",
-         "The candy swings; puff it at the bottom of the swing so that it flies into the hat; its pair drops it to Om "
-         "Nom. Cut loose and puffed, the candy falls on the spikes.",
-         candies=[(120, 300)], ropes=[rope(120, 150)], cushions=[cushion(30, 300, 0)],
-         hats=[hats((360, 330), 180, (240, 120), 270)], spikes=[spikes((100, 440), (205, 440))], om_nom=(240, 620),
-         stars=[(230, 300), (320, 320), (240, 400)]),
+         "Cut the left rope and the candy swings on the right one, too low for the hat. Puff it as it swings through "
+         "the cushion's band, three puffs, and it flies up into the hat; its pair drops it to Om Nom. Five puffs throw "
+         "it past the hat; cut loose, it falls on the spikes.",
+         candies=[(120, 260)], ropes=[rope(40, 170), rope(210, 160)], cushions=[cushion(30, 315, 0)],
+         hats=[hats((330, 225), 64, (380, 360), 270)], spikes=[spikes((60, 460), (180, 460))], om_nom=(380, 624),
+         stars=[(275, 282), (345, 150), (380, 500)]),
     make("b4_l07", "Around the spikes",
-         "Spikes roof Om Nom over; the hat's pair opens under them. Drop the candy straight into the hat: cut both "
-         "ropes in one swipe, or the other one swings the candy away.",
-         candies=[(80, 150)], ropes=[rope(20, 50), rope(160, 70)], hats=[hats((80, 500), 90, (360, 470), 270)],
-         spikes=[spikes((280, 430), (440, 430))], om_nom=(370, 620),
-         stars=[(80, 300), (80, 420), (370, 540)]),
+         "Spikes roof Om Nom over; the hat's pair opens under them. The hat is not under the candy: cut the left rope, "
+         "let the right one swing the candy out, and let go at the far end of the swing, over the hat. Both ropes at "
+         "once drop it beside the hat.",
+         candies=[(110, 140)], ropes=[rope(30, 40), rope(170, 20)], hats=[hats((222, 434), 90, (360, 470), 270)],
+         spikes=[spikes((280, 430), (440, 430))], om_nom=(360, 620), stars=[(222, 215), (223, 354), (360, 541)]),
     make("b4_l08", "Sling into the hat",
-         "Cut the lower rope: the red rope slings the candy past its pin, catches it and swings it back down into the "
-         "hat, which takes the rope off; the pair drops the candy into Om Nom. Let go of the red rope in flight and "
-         "the candy flies off the right edge.",
-         candies=[(100, 600)], ropes=[rope(20, 680, balance=True), rope(200, 460, stretch=30)],
-         hats=[hats((214, 604), 0, (70, 90), 270)], om_nom=(70, 420), stars=[(180, 500), (70, 200), (70, 300)]),
+         "Cut the lower rope: the red rope slings the candy up past its pin and swings it back; let go of it at the "
+         "end of the swing, right over the hat, and the candy drops in; the pair drops it from the top of the screen "
+         "into Om Nom. Hold on and it swings over the hat; let go in the throw and it flies off.",
+         candies=[(130, 560)], ropes=[rope(50, 640, balance=True), rope(200, 460, stretch=45)],
+         hats=[hats((170, 621), 90, (100, 80), 270)], om_nom=(100, 420), stars=[(180, 548), (100, 146), (100, 280)]),
     make("b4_l09", "Out of the hat, into a rope",
          "The candy falls into the hat and shoots out of its pair sideways; the automatic rope catches it in flight "
-         "and swings it round, down into Om Nom. Take the automatic rope away and the candy flies off.",
-         candies=[(80, 120)], ropes=[rope(80, 30)], hats=[hats((80, 420), 90, (200, 150), 0)],
-         active_pins=[{"pos": (380, 230), "radius": 90}], om_nom=(370, 350), stars=[(80, 300), (300, 170), (440, 250)]),
+         "and swings it round. Let go as the swing throws it back left, and it flies into Om Nom; hold on and it "
+         "swings past him.",
+         candies=[(80, 120)], ropes=[rope(80, 30)], hats=[hats((80, 420), 90, (160, 180), 0)],
+         active_pins=[{"pos": (380, 230), "radius": 100}], om_nom=(204, 304), stars=[(238, 180), (340, 193), (406, 321)]),
     make("b4_l10", "The spider and the hat",
          "A spider comes down the left of the two short ropes. Cut both short ropes in one swipe before it arrives: "
-         "the candy drops, the long slack rope catches it and swings it through the stars into the hat, and the pair "
-         "drops it on Om Nom. Cut the spider's rope alone and the other short rope keeps the candy; let that one go "
-         "later and the candy reaches the hat off the stars' line, or misses it.",
-         candies=[(140, 200)], ropes=[rope(140, 100, spider=0.0), rope(400, 160, slack=0), rope(260, 80)],
-         hats=[hats((340, 400), 180, (60, 380), 270)], om_nom=(60, 640), stars=[(200, 300), (250, 335), (60, 500)]),
+         "the long rope swings the candy out to the right; let go of it at the far end of the swing, over the hat, "
+         "and the pair drops the candy on Om Nom. Cut everything at once and it falls far from the hat.",
+         candies=[(160, 240)], ropes=[rope(160, 140, spider=0.0), rope(280, 120, slack=0), rope(240, 140)],
+         hats=[hats((383, 346), 90, (60, 360), 270)], om_nom=(60, 640), stars=[(273, 291), (383, 256), (60, 480)]),
     make("b4_l11", "Through the hat, past the sparks",
          "The pair of the hat opens above an electric barrier. Drop the candy when it will come out while the "
          "barrier is off.",
@@ -568,12 +572,12 @@ BOX4: list[Level] = [
          candies=[(80, 200)], ropes=[rope(80, 80, track=track(400, 80, 8.0))], hats=[hats((300, 450), 90, (420, 380), 270)],
          om_nom=(420, 640), stars=[(200, 210), (300, 350), (420, 520)]),
     make("b4_l13", "Roll into the hat",
-         "Drop the candy on the ramp, both ropes in one swipe: it rolls down into the hat at its foot, and the other "
-         "hat throws it down to Om Nom. Cut one rope alone and the other swings the candy into the spikes or off "
-         "the ramp.",
-         candies=[(170, 180)], ropes=[rope(90, 90), rope(250, 90)], walls=[wall((150, 345), (330, 420))],
-         spikes=[spikes((235, 190), (235, 300))],
-         hats=[hats((380, 420), 180, (100, 470), 300)], om_nom=(210, 640), stars=[(170, 260), (260, 360), (150, 560)]),
+         "The ramp is off to the right. Cut the left rope, let the right one swing the candy out, and let go at the "
+         "far end of the swing: it drops on the ramp, rolls down into the hat at its foot, and the other hat throws "
+         "it down to Om Nom. Both ropes at once drop it past the ramp, onto the spikes.",
+         candies=[(170, 180)], ropes=[rope(90, 90), rope(250, 90)], walls=[wall((380, 300), (250, 380))],
+         spikes=[spikes((60, 560), (200, 560))],
+         hats=[hats((215, 395), 0, (400, 470), 270)], om_nom=(400, 640), stars=[(330, 200), (300, 330), (400, 560)]),
     make("b4_l14", "Puff the bubble under the hat",
          "The bubble rises beside the hat; puff it over so that it rises into the hat, and pop it when its pair lets "
          "it out over Om Nom.",
