@@ -720,29 +720,76 @@ def test_the_calibration_report_gives_the_exact_rate_beside_the_sampled_one(tmp_
     assert re.search(r"^b3_l03 +\d+ +\d+% +17% ", printed, re.M) and re.search(r"^b5_l01 +\d+ +57% +50% ", printed, re.M)
     data = json.loads(out.read_text())
     assert [r["baseline_exact"] for r in data["levels"]] == [
-        {"sequences": 2, "rate": 0.5, "stars": {"1": 0.5}},
+        {"sequences": 2, "rate": 1.0, "stars": {"0": 0.5, "1": 0.5}},
         {"sequences": 6, "rate": pytest.approx(1 / 6), "stars": {"2": pytest.approx(1 / 6)}},
         {"sequences": 2, "rate": 0.5, "stars": {"3": 0.5}}]
-    assert data["all"]["baseline_exact"] == pytest.approx((0.5 + 1 / 6 + 0.5) / 3)
-    # Won half the time by random: b2_l01 and b5_l01, but both open their box (a tutorial may be
-    # gentle); b3_l03's 1/6 is under a third.
-    lucky = [t for t in data["targets"] if "a third of the time" in t["target"]]
+    assert data["all"]["baseline_exact"] == pytest.approx((1 + 1 / 6 + 0.5) / 3)
+    # Won every time (b2_l01) or half the time (b5_l01) by random: both open their box (a tutorial may
+    # be gentle); b3_l03's 1/6 is under a third.
+    lucky = [t for t in data["targets"] if "reference baseline a third of the time" in t["target"]]
     assert lucky == [{"target": lucky[0]["target"], "met": True, "figure": "none"}]
     assert "[met] no level but a box's opener won by the reference baseline a third" in printed
     # The same half-won row as any other level of its box fails the target.
     rows = [dict(r) for r in data["levels"]]
     rows[2]["level"] = "b5_l02"
-    lucky = [t for t in _targets(rows, check_needs=False) if "a third of the time" in t["target"]]
+    lucky = [t for t in _targets(rows, check_needs=False) if "reference baseline a third of the time" in t["target"]]
     assert lucky[0]["met"] is False and lucky[0]["figure"] == "b5_l02 50 %"
     # "No box at 0 %" asks whether random can win some level of each box: the exact rates say, not
     # three runs (b3_l03 went unwon in runs 0-2 though random wins it 1 time in 6).
     rows = [dict(r) for r in data["levels"]]
-    assert [r["mock_wins"] for r in rows] == [1, 0, 1]
-    rows[0]["mock_wins"] = 0  # 1 of 9 episodes: inside the 6-16 % range
+    assert [r["mock_wins"] for r in rows] == [3, 0, 1]
     baseline = lambda rows: next(t for t in _targets(rows, check_needs=False) if "no box at 0 %" in t["target"])  # noqa: E731
-    assert baseline(rows)["met"] is True and "b3 16.7 %" in baseline(rows)["figure"]
+    assert "b3 16.7 %" in baseline(rows)["figure"] and "b3 0.0 %" in baseline(rows)["figure"]
     rows[1]["baseline_exact"] = {"sequences": 6, "rate": 0.0, "stars": {}}
     assert baseline(rows)["met"] is False
+
+
+def test_the_calibration_report_holds_the_levels_to_the_shortcut_targets(tmp_path, capsys):
+    # Per level the shortcuts' results and the nudged plan; per box their rates and stars per win; the
+    # issue's targets on them, each failing on a row that breaks it.
+    from deepphy.cli import main
+    from deepphy.envs.cuttherope.shortcuts import SHORTCUTS
+    from deepphy.envs.cuttherope.solve import _targets
+
+    out = tmp_path / "calibration.json"
+    assert main(["solve", "--env", "cuttherope", "calibrate", "--levels", "b1_l01,b1_l13,b4_l12", "--no-needs",
+                 "--episodes", "20", "--json", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert re.search(r"^ *level .* nudged +1st-id +all +pauses +1-move", printed, re.M)
+    assert re.search(r"^ *box .* 1st-id +s/w +all +s/w +pauses +s/w", printed, re.M)
+    data = json.loads(out.read_text())
+    rows = data["levels"]
+    for r in rows:
+        assert set(r["shortcuts"]) == set(SHORTCUTS) and r["nudged"]["variants"] >= 1
+        assert r["shortcuts"]["first-id"]["episodes"] == 1 and r["shortcuts"]["random-pauses"]["episodes"] == 20
+    assert rows[0]["first_moves_that_win"] == ["cut_pin(1)"]  # the opener: one cut wins
+    assert rows[0]["shortcuts"]["first-id"]["stars"] == [3] and data["all"]["shortcuts"]["first-id"]["stars_per_win"] == 3
+
+    def target(rows, words):
+        return next(t for t in _targets(rows, check_needs=False) if words in t["target"])
+
+    assert target(rows, "single first action")["met"] is True
+    assert target(rows, "nudges")["met"] is True
+    moved = [dict(r) for r in rows]
+    moved[1] = dict(moved[1], first_moves_that_win=["cut_pin(2)"])  # a non-opener won by one cut
+    assert target(moved, "single first action") == {
+        "target": target(rows, "single first action")["target"], "met": False, "figure": "b1_l13 (cut_pin(2))"}
+    moved[2] = dict(moved[2], nudged=dict(moved[2]["nudged"], won=1, variants=2, share=0.5))
+    assert target(moved, "nudges")["met"] is False and "b4_l12 1/2" in target(moved, "nudges")["figure"]
+    lucky = [dict(r) for r in rows]
+    lucky[1] = dict(lucky[1], shortcuts=dict(lucky[1]["shortcuts"], **{
+        "random-pauses": {"episodes": 20, "wins": 7, "rate": 0.35, "stars": [1] * 7}}))
+    assert target(lucky, "random-pauses a third")["figure"] == "b1_l13 7/20"
+    # The shortcuts' mean rates against the reference's exact one: a shortcut that loses the two later levels
+    # is under it (b1_l01 is won by everything), one that wins every level is over it.
+    def with_rate(name, rate):
+        return [dict(r, shortcuts=dict(r["shortcuts"], **{name: {"episodes": 1, "wins": int(rate), "rate": rate,
+                                                                 "stars": [3] * int(rate)}})) for r in rows]
+    humble = [dict(r, shortcuts={n: (v if r["level"] == "b1_l01" else dict(v, wins=0, rate=0.0, stars=[]))
+                                 for n, v in r["shortcuts"].items()}) for r in rows]
+    assert target(humble, "no shortcut baseline")["met"] is True
+    assert target(with_rate("all-at-once", 1.0), "no shortcut baseline")["met"] is False
+    assert "all-at-once 100.0 %" in target(with_rate("all-at-once", 1.0), "no shortcut baseline")["figure"]
 
 
 def test_needs_tells_a_needed_element_from_decoration():

@@ -64,6 +64,7 @@ def make(id: str, title: str, idea: str, *, candies: list, ropes: list[dict] = (
 
 
 ACTED_ON_KINDS = ("pins", "active_pins", "bubbles", "cushions")  # the elements an action names by id
+FIRST_SWIPE = "b1_l20"  # the level that teaches cutting several ropes at once: no plan before it does
 
 
 def _shuffled(level_id: str, kind: str, items: list) -> list:
@@ -165,10 +166,12 @@ BOX1: list[Level] = [
          "order swings the candy the wrong way; both at once drop it straight past the slack rope's swing.",
          candies=[(320, 180)], ropes=[rope(200, 60), rope(460, 90), rope(120, 300, slack=120)], om_nom=(80, 580),
          stars=[(250, 362), (223, 521), (208, 642)]),
-    make("b1_l04", "Let go on the swing",
-         "Cut the rope above the candy and it swings on the other; let it go when the swing throws it toward Om Nom.",
-         candies=[(80, 200)], ropes=[rope(80, 100), rope(200, 80, slack=0)], om_nom=(400, 450),
-         stars=[(140, 245), (290, 290), (350, 360)]),
+    make("b1_l04", "Three in a row",
+         "Three ropes. Cut the right one and the short one below, one after the other, and the left one swings the "
+         "candy down; let go of it a moment later and the candy is flung left through the stars into Om Nom. Let "
+         "go at once and it drops short; later and it swings past.",
+         candies=[(280, 240)], ropes=[rope(140, 130), rope(390, 130), rope(280, 300, slack=100)], om_nom=(73, 548),
+         stars=[(203, 303), (145, 380), (110, 451)]),
     make("b1_l05", "Up with a bubble",
          "Cut the rope above the candy: it drops into the bubble, which carries it up until the slack rope on the "
          "right comes taut and swings it round, floating, toward the top of its pin. Let it go under Om Nom and it rises "
@@ -225,10 +228,11 @@ BOX1: list[Level] = [
          candies=[(90, 620)], ropes=[rope(10, 700, balance=True), rope(160, 520, stretch=35)],
          active_pins=[{"pos": (260, 440), "radius": 70}], om_nom=(202, 598), stars=[(222, 480), (325, 437), (234, 503)]),
     make("b1_l14", "Tug of war",
-         "Two stretched ropes pull the candy both ways. Cut one and the other throws the candy past its pin; the "
-         "right one's swing brings it round to Om Nom, the left one's away from him.",
-         candies=[(240, 380)], ropes=[rope(60, 380, stretch=25), rope(420, 380, balance=True)],
-         om_nom=(300, 570), stars=[(320, 375), (400, 430), (380, 560)]),
+         "Three ropes pull the candy three ways. Cut the two on the right and the left one swings the candy down; "
+         "let go of it a moment later and it is flung left through the stars into Om Nom. Let go at once and it "
+         "drops short; later and it swings past.",
+         candies=[(240, 280)], ropes=[rope(130, 170), rope(320, 200), rope(280, 220, slack=60)], om_nom=(78, 468),
+         stars=[(188, 315), (145, 348), (114, 394)]),
     make("b1_l15", "Sling, float, pop",
          "Cut the lower rope and at once the red one: the red rope slings the candy up into the bubble, which carries "
          "it up in a line over Om Nom. Pop it when it has risen through the stars and the candy drops straight into him; "
@@ -237,10 +241,11 @@ BOX1: list[Level] = [
          candies=[(120, 600)], ropes=[rope(60, 660, balance=True), rope(160, 520, stretch=30)],
          bubbles=[{"pos": (210, 470)}], om_nom=(270, 575), stars=[(240, 400), (251, 300), (251, 200)]),
     make("b1_l16", "Swing out, let go",
-         "Cut the left rope: the right one swings the candy out to the right; let go at the far end of the swing and "
-         "it drops to Om Nom. Cut the right rope first and the swing goes the wrong way.",
-         candies=[(210, 270)], ropes=[rope(120, 150), rope(300, 150)], om_nom=(420, 520),
-         stars=[(280, 320), (350, 300), (410, 400)]),
+         "Cut the left rope, then the right one a moment later: the candy, barely swinging, drops into the reach of "
+         "the long slack rope, which swings it out through the stars into Om Nom. The other order, or both at "
+         "once, and the slack rope swings it wide.",
+         candies=[(240, 200)], ropes=[rope(160, 120), rope(380, 120), rope(120, 380, slack=60)], om_nom=(408, 414),
+         stars=[(294, 257), (331, 289), (368, 340)]),
     make("b1_l17", "Under the spikes",
          "Spikes block the straight drop to Om Nom. Cut the left rope: the right one swings the candy out and back; "
          "let go as it swings back low, and it flies under the spikes into Om Nom.",
@@ -274,12 +279,11 @@ BOX1: list[Level] = [
          "at once, too soon, and it falls short.",
          candies=[(220, 500)], ropes=[rope(120, 300, stretch=35), rope(320, 380, stretch=15), rope(220, 710, balance=True)],
          om_nom=(384, 311), stars=[(182, 355), (205, 301), (274, 264)]),
-    make("b1_l22", "Two now, one later",
-         "Three ropes: cut two now, the left one among them, and the third swings the candy out to the right; let "
-         "go of it near the far end of the swing and it drops through the stars into Om Nom. Let go at once and it "
-         "flies low, into the spikes; a little later and it flies under the stars.",
-         candies=[(240, 300)], ropes=[rope(140, 200), rope(340, 200), rope(320, 40, slack=10)],
-         spikes=[spikes((330, 440), (365, 440))], om_nom=(420, 530), stars=[(320, 335), (405, 290), (420, 420)]),
+    make("b1_l22", "Which order?",
+         "Three ropes, one of them slack. Cut the right one and the slack one, then at once the left one: the "
+         "candy, flung right, flies through the stars into Om Nom. Any other order, or a pause, and it falls short.",
+         candies=[(160, 280)], ropes=[rope(50, 170), rope(300, 170), rope(120, 180, slack=100)], om_nom=(325, 481),
+         stars=[(214, 326), (249, 354), (283, 401)]),
     make("b1_l23", "Up, across, down",
          "Let the bubble take the candy up into the automatic rope's reach, pop it, and let go of the automatic rope "
          "when its swing points at Om Nom.",
@@ -303,11 +307,11 @@ def cushion(x: float, y: float, angle: float) -> dict:
 
 BOX2: list[Level] = [
     make("b2_l01", "A puff of air",
-         "Tap the air cushion: its puffs push the hanging candy into a swing. Cut the rope as the candy swings "
-         "toward Om Nom and it flies to him; three puffs and a cut at the top of the swing drop it through every "
-         "star.",
+         "Tap the air cushion: its puffs push the hanging candy into a swing. Cut the rope and the candy flies on "
+         "toward Om Nom; a tutorial, it reaches him however the two are done, but only three puffs and a cut near "
+         "the top of the swing take it through every star.",
          candies=[(140, 360)], ropes=[rope(140, 200)], cushions=[cushion(30, 360, 0)],
-         om_nom=(300, 470), stars=[(220, 360), (290, 280), (300, 390)]),
+         om_nom=(240, 460), stars=[(220, 360), (290, 280), (300, 390)]),
     make("b2_l02", "Puff the swing",
          "Puff the hanging candy: enough puffs and it swings up and round to Om Nom, through the stars; too few and "
          "it swings back.",
@@ -358,10 +362,10 @@ BOX2: list[Level] = [
          candies=[(150, 200)], ropes=[rope(150, 100, spider=0.5), rope(350, 160, slack=80)], om_nom=(390, 566),
          stars=[(150, 346), (225, 410), (308, 471)]),
     make("b2_l10", "Race the spider",
-         "A spider comes down the rope on the left: cut it before it arrives, and the candy swings on the other "
-         "rope; let go of that one at the right point of the swing.",
-         candies=[(220, 260)], ropes=[rope(100, 120, spider=0.0), rope(360, 120)], om_nom=(420, 480),
-         stars=[(300, 300), (380, 300), (430, 340)]),
+         "A spider comes down the left rope. Cut the ropes in the right order, quickly: the candy is flung left, "
+         "through the stars into Om Nom. Wait, and the spider takes it.",
+         candies=[(280, 280)], ropes=[rope(140, 170, spider=0.5), rope(390, 140), rope(40, 220, slack=100)],
+         om_nom=(120, 471), stars=[(226, 326), (192, 354), (157, 401)]),
     make("b2_l11", "Before the spider, after the swing",
          "A spider comes down one of the two short ropes: cut both before it arrives, and the slack rope catches the "
          "candy and swings it out to the right. Let go of it on the swing back, and it flies left to Om Nom; let go "
@@ -373,22 +377,23 @@ BOX2: list[Level] = [
          "waits off to the left: puff the bubble over as it rises past the cushion, hard enough to reach him.",
          candies=[(340, 500)], ropes=[rope(340, 350, spider=0.0)], bubbles=[{"pos": (340, 590)}],
          cushions=[cushion(460, 320, 180)], om_nom=(145, 281), stars=[(340, 531), (340, 420), (249, 361)]),
-    make("b2_l13", "Puff away from the spider",
-         "A spider comes down the only rope. Puff the candy into a swing, and cut the rope at the top of the swing, "
-         "over Om Nom, before the spider arrives. A weak swing let go early falls short, onto the spikes.",
-         candies=[(140, 360)], ropes=[rope(140, 200, spider=1.0)], cushions=[cushion(30, 360, 0)],
-         spikes=[spikes((205, 405), (258, 405))], om_nom=(300, 470), stars=[(220, 360), (290, 280), (300, 390)]),
-    make("b2_l14", "Spider on a red rope",
-         "A spider starts down the stretched rope. Cut the rope below and the red rope throws the candy up past its "
-         "pin, where it stops and falls; let go of the red rope while it falls and it drops into Om Nom. Let go too "
-         "soon and it flies off the right edge; hold on and the rope swings it away, and the spider comes.",
-         candies=[(120, 560)], ropes=[rope(30, 660, balance=True), rope(230, 400, stretch=35, spider=0.0)],
-         om_nom=(300, 630), stars=[(200, 470), (393, 360), (320, 520)]),
-    make("b2_l15", "Spider and the automatic rope",
-         "Cut the spider's rope: the candy falls, the automatic rope catches it and swings it round. Let go of that "
-         "rope when the candy flies toward Om Nom.",
-         candies=[(120, 150)], ropes=[rope(120, 50, spider=0.0)], active_pins=[{"pos": (200, 360), "radius": 110}],
-         om_nom=(305, 570), stars=[(120, 280), (250, 480), (300, 430)]),
+    make("b2_l13", "Away from the spider",
+         "A spider comes down the right rope. Cut the three ropes in the right order, one right after the other, "
+         "and the candy is flung left through the stars into Om Nom. The wrong order flings it wide; wait, and the "
+         "spider takes it.",
+         candies=[(280, 240)], ropes=[rope(200, 160), rope(360, 100, spider=1.0), rope(360, 60, slack=100)],
+         om_nom=(105, 447), stars=[(218, 274), (177, 308), (146, 355)]),
+    make("b2_l14", "Three ropes and a spider",
+         "A spider starts down the left rope at once. Cut the three ropes in the right order, one right after the "
+         "other: the candy is flung left through the stars into Om Nom. The wrong order flings it wide; wait, and "
+         "the spider takes it.",
+         candies=[(280, 240)], ropes=[rope(140, 160, spider=0.0), rope(360, 160), rope(120, 260, slack=100)],
+         om_nom=(112, 454), stars=[(226, 297), (189, 329), (152, 380)]),
+    make("b2_l15", "Before the spider, in order",
+         "A spider comes down the right rope. Cut the ropes in the right order, quickly: the candy swings out to the "
+         "right and flies through the stars into Om Nom. The wrong order drops it wide; wait, and the spider takes it.",
+         candies=[(240, 240)], ropes=[rope(100, 160), rope(320, 130, spider=0.5), rope(160, 340, slack=100)],
+         om_nom=(377, 395), stars=[(286, 262), (321, 287), (347, 327)]),
     make("b2_l16", "Cut loose before the spider",
          "A spider climbs the rope that ties the bubble down. Cut it loose in time, puff the rising bubble over, "
          "and pop it above Om Nom.",
@@ -458,7 +463,7 @@ BOX3: list[Level] = [
     make("b3_l02", "Sparks",
          "An electric barrier sparks on and off between the candy and Om Nom. Cut so that the candy passes it while "
          "it is off.",
-         candies=[(240, 160)], ropes=[rope(240, 60)], electrics=[electric((140, 400), (340, 400), 2.0, 1.2)],
+         candies=[(240, 160)], ropes=[rope(240, 60)], electrics=[electric((140, 400), (340, 400), 3.0, 2.4)],
          om_nom=(240, 620), stars=[(240, 280), (240, 470), (240, 540)]),
     make("b3_l03", "A ramp",
          "Cut the two short ropes and the candy drops into the long rope's swing; let go of it at the top of the "
@@ -482,16 +487,17 @@ BOX3: list[Level] = [
                                        rope(30, 140, slack=100)],
          om_nom=(260, 600), stars=[(165, 270), (190, 360), (215, 440)]),
     make("b3_l06", "Bounce off the wall",
-         "Let go of the swing so that the candy hits the wall and bounces back down into Om Nom, who sits where no "
-         "straight throw reaches.",
-         candies=[(100, 300)], ropes=[rope(100, 180), rope(220, 180, slack=0)], walls=[wall((420, 150), (420, 450))],
-         om_nom=(320, 540), stars=[(200, 360), (350, 330), (360, 450)]),
+         "Om Nom sits where no throw reaches him straight. Cut the three ropes in the right order, quickly: the "
+         "candy is flung right, bounces off the wall and drops through the stars into him. Any other order flings it "
+         "short or wide.",
+         candies=[(200, 240)], ropes=[rope(110, 100), rope(310, 160), rope(160, 60, slack=140)],
+         walls=[wall((410, 200), (410, 560))], om_nom=(363, 569), stars=[(291, 310), (338, 371), (380, 461)]),
     make("b3_l07", "Foil finale",
          "A hook, sparks and a ramp: let go of the moving candy when it will pass the barrier while it is off and "
          "land high on the ramp, which rolls it through the stars to Om Nom.",
          candies=[(100, 200)], ropes=[rope(100, 80, track=track(380, 80, 8.0))],
-         electrics=[electric((130, 320), (360, 320), 2.0, 1.0)], walls=[wall((130, 450), (380, 540))],
-         om_nom=(440, 590), stars=[(180, 390), (260, 450), (350, 490)]),
+         electrics=[electric((130, 320), (440, 320), 2.0, 1.4, 1.4)], walls=[wall((250, 480), (390, 540))],
+         om_nom=(440, 590), stars=[(251, 283), (290, 410), (376, 481)]),
 ]
 
 # -- box 4: Magic -----------------------------------------------------------------------------------
@@ -526,11 +532,11 @@ BOX4: list[Level] = [
          candies=[(240, 120)], ropes=[rope(150, 20), rope(300, 40)],
          hats=[hats((340, 380), 90, (420, 300), 180), hats((340, 243), 90, (420, 470), 270)],
          om_nom=(420, 620), stars=[(390, 277), (340, 163), (420, 545)]),
-    make("b4_l05", "Up into the hat",
-         "A bubble carries the candy up into a hat that opens downward; its pair lets the bubble out sideways. Pop "
-         "it then, over Om Nom.",
-         candies=[(120, 520)], ropes=[rope(120, 400)], bubbles=[{"pos": (120, 600)}],
-         hats=[hats((120, 180), 270, (340, 160), 0)], om_nom=(440, 620), stars=[(120, 350), (120, 250), (440, 400)]),
+    make("b4_l05", "Fling it into the hat",
+         "Three ropes. Cut them in the right order, one right after the other, and the candy is flung down into the "
+         "hat; its pair drops it through the stars into Om Nom. Any other order flings it past the hat.",
+         candies=[(160, 200)], ropes=[rope(50, 120), rope(240, 90), rope(400, 100, slack=20)],
+         hats=[hats((280, 312), 114, (420, 200), 270)], om_nom=(420, 620), stars=[(215, 225), (420, 300), (420, 473)]),
     make("b4_l06", "Puff into the hat",
          "Cut the left rope and the candy swings on the right one, too low for the hat. Puff it as it swings through "
          "the cushion's band, three puffs, and it flies up into the hat; its pair drops it to Om Nom. Five puffs throw "
@@ -566,11 +572,12 @@ BOX4: list[Level] = [
          "The pair of the hat opens above an electric barrier. Drop the candy when it will come out while the "
          "barrier is off.",
          candies=[(100, 140)], ropes=[rope(100, 40)], hats=[hats((100, 420), 90, (340, 120), 270)],
-         electrics=[electric((260, 330), (440, 330), 1.6, 0.9, 0.6)], om_nom=(340, 620), stars=[(100, 300), (340, 250), (340, 450)]),
+         electrics=[electric((260, 330), (440, 330), 3.0, 2.4)], om_nom=(340, 620), stars=[(100, 300), (340, 250), (340, 450)]),
     make("b4_l12", "Drop from the hook",
-         "The hook carries the candy across; drop it when it is over the hat, and the pair sends it down to Om Nom.",
-         candies=[(80, 200)], ropes=[rope(80, 80, track=track(400, 80, 8.0))], hats=[hats((300, 450), 90, (420, 380), 270)],
-         om_nom=(420, 640), stars=[(200, 210), (300, 350), (420, 520)]),
+         "The hook carries the candy across; spikes roof Om Nom over, and the hat's pair opens under them. Drop the "
+         "candy when its fall ends in the hat: a moment early or late and it misses.",
+         candies=[(80, 200)], ropes=[rope(80, 80, track=track(400, 80, 8.0))], hats=[hats((200, 300), 90, (400, 480), 270)],
+         spikes=[spikes((300, 430), (470, 430))], om_nom=(400, 660), stars=[(150, 205), (200, 240), (400, 590)]),
     make("b4_l13", "Roll into the hat",
          "The ramp is off to the right. Cut the left rope, let the right one swing the candy out, and let go at the "
          "far end of the swing: it drops on the ramp, rolls down into the hat at its foot, and the other hat throws "
@@ -621,11 +628,11 @@ BOX5: list[Level] = [
          ropes=[rope(140, 330, candy=0), rope(320, 300, candy=0), rope(250, 90, candy=1)],
          om_nom=(240, 640), stars=[(250, 300), (240, 490), (215, 560)]),
     make("b5_l04", "A half in a bubble",
-         "Drop the lower half into the bubble: it rises to the upper half and they join, floating on the upper "
-         "half's rope. Pop the bubble, then cut the rope, and the whole candy falls to Om Nom.",
-         candies=[(220, 460), (250, 260)], bubbles=[{"pos": (220, 540)}],
-         ropes=[rope(220, 350, candy=0), rope(250, 160, candy=1)], om_nom=(250, 640),
-         stars=[(200, 400), (250, 110), (250, 480)]),
+         "Drop the left half into the bubble and puff the rising bubble over to the right half: they join, floating "
+         "on the right half's rope. Pop the bubble, then cut the rope, and the whole candy falls to Om Nom.",
+         candies=[(140, 460), (320, 300)], bubbles=[{"pos": (140, 540)}],
+         ropes=[rope(140, 350, candy=0), rope(320, 200, candy=1)], cushions=[cushion(20, 320, 0)],
+         om_nom=(320, 640), stars=[(140, 400), (230, 320), (320, 480)]),
     make("b5_l05", "Puff the halves together",
          "Puff the right half three times: it swings up round its pin until it hangs over the left half. Let it go "
          "there and it drops onto the left half: they join on the left rope; cut that and the whole candy falls to "

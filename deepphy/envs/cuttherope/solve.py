@@ -59,7 +59,7 @@ from deepphy.envs.cuttherope.calibrate import (
     reference_baseline,
     shortcut_baseline,
 )
-from deepphy.envs.cuttherope.design import design, designed_ids
+from deepphy.envs.cuttherope.design import FIRST_SWIPE, design, designed_ids
 from deepphy.envs.cuttherope.env import CutTheRopeEnv
 from deepphy.envs.cuttherope.level import Level, Solution, level_ids, load_level, save_level
 from deepphy.envs.cuttherope.oracle import (
@@ -341,6 +341,9 @@ def make_level(level_id: str, nodes: int, check_needs: bool, beam: int = BEAM) -
     level = design(level_id)
     row = {"level": level_id, "at_rest": at_rest(level)}
     centred: dict[tuple[str, ...], list[str]] = {}
+    # The levels before the swipe is taught store plans that cut one rope at a time.
+    swipes = level.box > 1 or level_id >= FIRST_SWIPE
+    forbid = None if swipes else (lambda move: len(move.ids) > 1)
 
     def robust(plan: Plan) -> bool:
         if plan.stars < 3:
@@ -349,9 +352,9 @@ def make_level(level_id: str, nodes: int, check_needs: bool, beam: int = BEAM) -
         centred[tuple(plan.texts)] = texts
         return nudged(level, texts)["share"] >= ROBUST_SHARE
 
-    found = search(level, max_nodes=nodes, beam=beam, accept=robust)
+    found = search(level, max_nodes=nodes, beam=beam, accept=robust, forbid=forbid)
     if found.best is None:  # no robust plan: the best plan there is
-        found = search(level, max_nodes=nodes, beam=beam)
+        found = search(level, max_nodes=nodes, beam=beam, forbid=forbid)
     row["nodes"] = found.nodes
     if found.best is None or found.best.stars < 3:
         row["found"] = found.best.texts if found.best else None
