@@ -241,11 +241,11 @@ BOX1: list[Level] = [
          candies=[(120, 600)], ropes=[rope(60, 660, balance=True), rope(160, 520, stretch=30)],
          bubbles=[{"pos": (210, 470)}], om_nom=(270, 575), stars=[(240, 400), (251, 300), (251, 200)]),
     make("b1_l16", "Swing out, let go",
-         "Cut the left rope, then the right one a moment later: the candy, barely swinging, drops into the reach of "
-         "the long slack rope, which swings it out through the stars into Om Nom. The other order, or both at "
-         "once, and the slack rope swings it wide.",
-         candies=[(240, 200)], ropes=[rope(160, 120), rope(380, 120), rope(120, 380, slack=60)], om_nom=(408, 414),
-         stars=[(294, 257), (331, 289), (368, 340)]),
+         "Three ropes, one of them slack. Cut them one after the other, without a pause, in the one order that "
+         "swings the candy out to the right and lets it go through the stars into Om Nom. Every rope plays its "
+         "part: the wrong order, or a pause, and it falls wide.",
+         candies=[(200, 200)], ropes=[rope(120, 120), rope(310, 120), rope(80, 100, slack=60)], om_nom=(369, 388),
+         stars=[(255, 245), (291, 269), (327, 312)]),
     make("b1_l17", "Under the spikes",
          "Spikes block the straight drop to Om Nom. Cut the left rope: the right one swings the candy out and back; "
          "let go as it swings back low, and it flies under the spikes into Om Nom.",
@@ -256,7 +256,7 @@ BOX1: list[Level] = [
          "past its pin and swings it back and forth; let go as a swing carries it right, high enough to clear the "
          "spikes, and it falls into Om Nom.",
          candies=[(90, 520)], ropes=[rope(0, 630, balance=True), rope(250, 320, stretch=50)],
-         spikes=[spikes((217, 587), (217, 710))], om_nom=(305, 607), stars=[(388, 248), (314, 431), (104, 463)]),
+         spikes=[spikes((217, 430), (217, 710))], om_nom=(305, 607), stars=[(388, 248), (314, 431), (104, 463)]),
     make("b1_l19", "Not that rope",
          "Cut the left rope and the candy swings out on the right one, toward Om Nom behind a row of spikes; but "
          "the automatic rope lies across the swing: it grabs the candy and, left holding it alone, swings it into "
@@ -267,18 +267,17 @@ BOX1: list[Level] = [
          spikes=[spikes((370, 450), (370, 680))], om_nom=(430, 600), stars=[(260, 300), (380, 300), (430, 420)]),
     make("b1_l20", "Together",
          "Cut the rope above the candy: it falls into the two slack ropes, swings and settles between them, over Om "
-         "Nom. Then cut both in one swipe and it drops straight into him; cut one alone and the other swings it into "
-         "the spikes, cut all three at once and it drops past him.",
+         "Nom. Then cut both in one swipe and it drops straight into him; cut the left one alone and the other swings "
+         "it into the spikes, cut all three at once and it drops past him.",
          candies=[(190, 240)], ropes=[rope(190, 140), rope(60, 200, slack=170), rope(400, 200, slack=50)],
-         spikes=[spikes((40, 450), (40, 650)), spikes((440, 420), (440, 620))], om_nom=(300, 640),
+         spikes=[spikes((440, 420), (440, 620))], om_nom=(300, 640),
          stars=[(190, 330), (260, 400), (300, 540)]),
     make("b1_l21", "Twin slingshot",
          "Two red ropes pull the candy up against the rope below. Cut the lower one and they throw it up between "
-         "their pins; let go of the left one as it flies (or of both, a moment later) and it sails on through the "
-         "stars into Om Nom, high on the right. Let go of the right one and the left pulls the candy away; of both "
-         "at once, too soon, and it falls short.",
-         candies=[(220, 500)], ropes=[rope(120, 300, stretch=35), rope(320, 380, stretch=15), rope(220, 710, balance=True)],
-         om_nom=(384, 311), stars=[(182, 355), (205, 301), (274, 264)]),
+         "their pins; let both go in one swipe as it comes back down, and it falls through the stars into Om Nom. "
+         "Let go of one alone and the other pulls the candy aside; of both at once, or too late, and it misses him.",
+         candies=[(260, 460)], ropes=[rope(120, 300, stretch=15), rope(400, 380, stretch=35), rope(260, 710, balance=True)],
+         om_nom=(290, 595), stars=[(320, 316), (304, 334), (282, 456)]),
     make("b1_l22", "Which order?",
          "Three ropes, one of them slack. Cut the right one and the slack one, then at once the left one: the "
          "candy, flung right, flies through the stars into Om Nom. Any other order, or a pause, and it falls short.",
@@ -362,10 +361,11 @@ BOX2: list[Level] = [
          candies=[(150, 200)], ropes=[rope(150, 100, spider=0.5), rope(350, 160, slack=80)], om_nom=(390, 566),
          stars=[(150, 346), (225, 410), (308, 471)]),
     make("b2_l10", "Race the spider",
-         "A spider comes down the left rope. Cut the ropes in the right order, quickly: the candy is flung left, "
-         "through the stars into Om Nom. Wait, and the spider takes it.",
-         candies=[(280, 280)], ropes=[rope(140, 170, spider=0.5), rope(390, 140), rope(40, 220, slack=100)],
-         om_nom=(120, 471), stars=[(226, 326), (192, 354), (157, 401)]),
+         "A spider comes down the left rope. Cut the three ropes one after the other, without a pause, in the right "
+         "order: the candy is flung right, through the stars into Om Nom. The wrong order flings it wide; wait, and "
+         "the spider takes it.",
+         candies=[(200, 280)], ropes=[rope(120, 140, spider=0.5), rope(340, 200), rope(320, 180, slack=60)],
+         om_nom=(383, 528), stars=[(254, 337), (303, 384), (341, 441)]),
     make("b2_l11", "Before the spider, after the swing",
          "A spider comes down one of the two short ropes: cut both before it arrives, and the slack rope catches the "
          "candy and swings it out to the right. Let go of it on the swing back, and it flies left to Om Nom; let go "
@@ -384,16 +384,17 @@ BOX2: list[Level] = [
          candies=[(280, 240)], ropes=[rope(200, 160), rope(360, 100, spider=1.0), rope(360, 60, slack=100)],
          om_nom=(105, 447), stars=[(218, 274), (177, 308), (146, 355)]),
     make("b2_l14", "Three ropes and a spider",
-         "A spider starts down the left rope at once. Cut the three ropes in the right order, one right after the "
-         "other: the candy is flung left through the stars into Om Nom. The wrong order flings it wide; wait, and "
-         "the spider takes it.",
-         candies=[(280, 240)], ropes=[rope(140, 160, spider=0.0), rope(360, 160), rope(120, 260, slack=100)],
-         om_nom=(112, 454), stars=[(226, 297), (189, 329), (152, 380)]),
+         "A spider starts down the left rope at once. Cut the three ropes one after the other, without a pause, in "
+         "the right order: the candy is flung left through the stars into Om Nom. The wrong order flings it wide; "
+         "wait, and the spider takes it.",
+         candies=[(240, 240)], ropes=[rope(130, 100, spider=0.0), rope(350, 160), rope(240, 100, slack=100)],
+         om_nom=(93, 413), stars=[(192, 267), (154, 297), (126, 341)]),
     make("b2_l15", "Before the spider, in order",
-         "A spider comes down the right rope. Cut the ropes in the right order, quickly: the candy swings out to the "
-         "right and flies through the stars into Om Nom. The wrong order drops it wide; wait, and the spider takes it.",
-         candies=[(240, 240)], ropes=[rope(100, 160), rope(320, 130, spider=0.5), rope(160, 340, slack=100)],
-         om_nom=(377, 395), stars=[(286, 262), (321, 287), (347, 327)]),
+         "A spider comes down the right rope. Cut the three ropes one after the other, without a pause, in the "
+         "right order: the candy swings out to the right and flies through the stars into Om Nom. The wrong order "
+         "drops it wide; wait, and the spider takes it.",
+         candies=[(200, 280)], ropes=[rope(90, 200), rope(310, 170, spider=0.5), rope(360, 60, slack=60)],
+         om_nom=(363, 468), stars=[(252, 315), (295, 347), (326, 394)]),
     make("b2_l16", "Cut loose before the spider",
          "A spider climbs the rope that ties the bubble down. Cut it loose in time, puff the rising bubble over, "
          "and pop it above Om Nom.",
@@ -528,21 +529,22 @@ BOX4: list[Level] = [
     make("b4_l04", "Two pairs",
          "Two pairs of hats, told apart by their colours. Cut the left rope and let the right one swing the candy "
          "over; let go when its fall ends in the first hat: its pair throws the candy up into the second pair's "
-         "hat, and that one drops it to Om Nom. Both ropes at once drop it straight, past the hats.",
+         "hat, and that one drops it to Om Nom, under the spikes. Both ropes at once drop it straight, past the hats.",
          candies=[(240, 120)], ropes=[rope(150, 20), rope(300, 40)],
-         hats=[hats((340, 380), 90, (420, 300), 180), hats((340, 243), 90, (420, 470), 270)],
-         om_nom=(420, 620), stars=[(390, 277), (340, 163), (420, 545)]),
+         hats=[hats((340, 380), 90, (420, 300), 180), hats((340, 243), 90, (420, 570), 270)],
+         spikes=[spikes((330, 525), (470, 525))], om_nom=(420, 670), stars=[(390, 277), (340, 320), (340, 185)]),
     make("b4_l05", "Fling it into the hat",
-         "Three ropes. Cut them in the right order, one right after the other, and the candy is flung down into the "
-         "hat; its pair drops it through the stars into Om Nom. Any other order flings it past the hat.",
-         candies=[(160, 200)], ropes=[rope(50, 120), rope(240, 90), rope(400, 100, slack=20)],
-         hats=[hats((280, 312), 114, (420, 200), 270)], om_nom=(420, 620), stars=[(215, 225), (420, 300), (420, 473)]),
+         "Three ropes, one of them slack. Cut them one after the other, without a pause, in the right order, and the "
+         "candy is flung down into the hat; its pair drops it through the stars into Om Nom. Any other order flings "
+         "it past the hat.",
+         candies=[(200, 200)], ropes=[rope(60, 120), rope(340, 90), rope(200, 220, slack=100)],
+         hats=[hats((384, 445), 111, (420, 200), 270)], om_nom=(420, 560), stars=[(335, 340), (420, 276), (420, 379)]),
     make("b4_l06", "Puff into the hat",
          "Cut the left rope and the candy swings on the right one, too low for the hat. Puff it as it swings through "
          "the cushion's band, three puffs, and it flies up into the hat; its pair drops it to Om Nom. Five puffs throw "
-         "it past the hat; cut loose, it falls on the spikes.",
+         "it past the hat; cut loose, it falls short.",
          candies=[(120, 260)], ropes=[rope(40, 170), rope(210, 160)], cushions=[cushion(30, 315, 0)],
-         hats=[hats((330, 225), 64, (380, 360), 270)], spikes=[spikes((60, 460), (180, 460))], om_nom=(380, 624),
+         hats=[hats((330, 225), 64, (380, 360), 270)], om_nom=(380, 624),
          stars=[(275, 282), (345, 150), (380, 500)]),
     make("b4_l07", "Around the spikes",
          "Spikes roof Om Nom over; the hat's pair opens under them. The hat is not under the candy: cut the left rope, "
@@ -581,9 +583,8 @@ BOX4: list[Level] = [
     make("b4_l13", "Roll into the hat",
          "The ramp is off to the right. Cut the left rope, let the right one swing the candy out, and let go at the "
          "far end of the swing: it drops on the ramp, rolls down into the hat at its foot, and the other hat throws "
-         "it down to Om Nom. Both ropes at once drop it past the ramp, onto the spikes.",
+         "it down to Om Nom. Both ropes at once drop it past the ramp.",
          candies=[(170, 180)], ropes=[rope(90, 90), rope(250, 90)], walls=[wall((380, 300), (250, 380))],
-         spikes=[spikes((60, 560), (200, 560))],
          hats=[hats((215, 395), 0, (400, 470), 270)], om_nom=(400, 640), stars=[(330, 200), (300, 330), (400, 560)]),
     make("b4_l14", "Puff the bubble under the hat",
          "The bubble rises beside the hat; puff it over so that it rises into the hat, and pop it when its pair lets "
