@@ -128,7 +128,8 @@ def test_candies_start_at_rest_and_a_hook_moves_its_rope():
 
 
 def test_cut_rope_releases_the_candy_with_its_swing_velocity():
-    # A pendulum released from horizontal: at the bottom v = sqrt(2 g L) (pymunk, not scripted).
+    # A pendulum released from horizontal: at the bottom v = sqrt(2 g L) (pymunk, not scripted),
+    # less what the rope's drag took on the way (the energy decays about as exp(-ROPE_DRAG t)).
     L = 150.0
     w = world_of(make(candies=[{"pos": (240 + L, 200)}], pins=[{"pos": (240, 200)}]))
     prev = None
@@ -140,7 +141,8 @@ def test_cut_rope_releases_the_candy_with_its_swing_velocity():
         prev = c.vy
     c = w.candies[0]
     speed = math.hypot(c.vx, c.vy)
-    assert abs(c.x - 240) < 8 and speed == pytest.approx(math.sqrt(2 * C.GRAVITY * L), rel=0.03)
+    dragged = math.exp(-C.ROPE_DRAG * w.time / 2)
+    assert abs(c.x - 240) < 8 and speed == pytest.approx(math.sqrt(2 * C.GRAVITY * L) * dragged, rel=0.03)
     assert 2.0 < w.rope_stretch(w.ropes[0]) < 4.0  # the rope gives ~1 px per candy weight; ~3 g at the bottom
     x0, y0, vx0, vy0 = c.x, c.y, c.vx, c.vy
     w.cut_pin(1)
@@ -150,14 +152,19 @@ def test_cut_rope_releases_the_candy_with_its_swing_velocity():
     assert w.candies[0].y == pytest.approx(y0 + vy0 * t + 0.5 * C.GRAVITY * t * t, abs=2.0)
 
 
-def test_a_swing_keeps_its_energy_and_returns_to_its_height():
-    w = world_of(make(candies=[{"pos": (390, 200)}], pins=[{"pos": (240, 200)}]))
-    w.advance(150)  # near the far end of the first swing (half a period ~1.35 s)
-    heights = []
-    for _ in range(30):
-        w.advance(1)
-        heights.append(w.candies[0].y)
-    assert w.candies[0].x < 100 and abs(min(heights) - 200) < 3.0
+def test_a_swing_dies_down_as_in_the_game():
+    # The issue's measure: a free swing 100 px to the side of its pin loses at least half its
+    # amplitude within 10 s (without drag: 100.4 -> 99.7 px over 18 s); one swing loses little.
+    w = world_of(make(candies=[{"pos": (340, 300)}], pins=[{"pos": (240, 200)}]))
+    amplitude = []  # the largest sideways distance from the pin in each second
+    for _ in range(10):
+        xs = []
+        for _ in range(C.STEPS_PER_SECOND):
+            w.advance(1)
+            xs.append(abs(w.candies[0].x - 240))
+        amplitude.append(max(xs))
+    assert amplitude[0] > 95 and amplitude[-1] < 50
+    assert all(b <= a + 0.5 for a, b in zip(amplitude, amplitude[1:]))  # it only ever dies down
 
 
 def test_two_taut_ropes_share_the_weight_and_are_drawn_by_their_stretch():
@@ -454,9 +461,10 @@ def test_observation_shows_ids_state_and_what_can_be_used():
     image = obs.images[0]
     assert image.size == (C.WIDTH, C.HEIGHT) and image.name == "scene"
     text = obs.text
-    assert "Action 1 of at most 10" in text and "You can now:" in text and "Om Nom" in text
+    assert "Decision 1 of at most 10" in text and "You can now:" in text and "1 spider (on the rope of P1)" in text
+    assert f"{len(level.pins)} pin (P1); 1 bubble (B1); 1 air cushion (C1)" in text
     for k in range(1, len(level.pins) + 1):
-        assert f"P{k} (" in text and f"cut_pin({k})" in text
+        assert f"cut_pin({k})" in text
     space = obs.action_space
     assert space.num_pins == len(level.pins) and space.pins == list(range(1, len(level.pins) + 1))
     first = space.parse(space.format(space.element_actions()[0]))
@@ -711,29 +719,76 @@ def test_the_calibration_report_gives_the_exact_rate_beside_the_sampled_one(tmp_
     assert re.search(r"^b3_l03 +\d+ +\d+% +17% ", printed, re.M) and re.search(r"^b5_l01 +\d+ +57% +50% ", printed, re.M)
     data = json.loads(out.read_text())
     assert [r["baseline_exact"] for r in data["levels"]] == [
-        {"sequences": 2, "rate": 0.5, "stars": {"1": 0.5}},
+        {"sequences": 2, "rate": 1.0, "stars": {"0": 0.5, "1": 0.5}},
         {"sequences": 6, "rate": pytest.approx(1 / 6), "stars": {"2": pytest.approx(1 / 6)}},
         {"sequences": 2, "rate": 0.5, "stars": {"3": 0.5}}]
-    assert data["all"]["baseline_exact"] == pytest.approx((0.5 + 1 / 6 + 0.5) / 3)
-    # Won half the time by random: b2_l01 and b5_l01, but both open their box (a tutorial may be
-    # gentle); b3_l03's 1/6 is under a third.
-    lucky = [t for t in data["targets"] if "a third of the time" in t["target"]]
+    assert data["all"]["baseline_exact"] == pytest.approx((1 + 1 / 6 + 0.5) / 3)
+    # Won every time (b2_l01) or half the time (b5_l01) by random: both open their box (a tutorial may
+    # be gentle); b3_l03's 1/6 is under a third.
+    lucky = [t for t in data["targets"] if "reference baseline a third of the time" in t["target"]]
     assert lucky == [{"target": lucky[0]["target"], "met": True, "figure": "none"}]
     assert "[met] no level but a box's opener won by the reference baseline a third" in printed
     # The same half-won row as any other level of its box fails the target.
     rows = [dict(r) for r in data["levels"]]
     rows[2]["level"] = "b5_l02"
-    lucky = [t for t in _targets(rows, check_needs=False) if "a third of the time" in t["target"]]
+    lucky = [t for t in _targets(rows, check_needs=False) if "reference baseline a third of the time" in t["target"]]
     assert lucky[0]["met"] is False and lucky[0]["figure"] == "b5_l02 50 %"
     # "No box at 0 %" asks whether random can win some level of each box: the exact rates say, not
     # three runs (b3_l03 went unwon in runs 0-2 though random wins it 1 time in 6).
     rows = [dict(r) for r in data["levels"]]
-    assert [r["mock_wins"] for r in rows] == [1, 0, 1]
-    rows[0]["mock_wins"] = 0  # 1 of 9 episodes: inside the 6-16 % range
+    assert [r["mock_wins"] for r in rows] == [3, 0, 1]
     baseline = lambda rows: next(t for t in _targets(rows, check_needs=False) if "no box at 0 %" in t["target"])  # noqa: E731
-    assert baseline(rows)["met"] is True and "b3 16.7 %" in baseline(rows)["figure"]
+    assert "b3 16.7 %" in baseline(rows)["figure"] and "b3 0.0 %" in baseline(rows)["figure"]
     rows[1]["baseline_exact"] = {"sequences": 6, "rate": 0.0, "stars": {}}
     assert baseline(rows)["met"] is False
+
+
+def test_the_calibration_report_holds_the_levels_to_the_shortcut_targets(tmp_path, capsys):
+    # Per level the shortcuts' results and the nudged plan; per box their rates and stars per win; the
+    # issue's targets on them, each failing on a row that breaks it.
+    from deepphy.cli import main
+    from deepphy.envs.cuttherope.shortcuts import SHORTCUTS
+    from deepphy.envs.cuttherope.solve import _targets
+
+    out = tmp_path / "calibration.json"
+    assert main(["solve", "--env", "cuttherope", "calibrate", "--levels", "b1_l01,b1_l13,b4_l12", "--no-needs",
+                 "--episodes", "20", "--json", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert re.search(r"^ *level .* nudged +1st-id +all +pauses +1-move", printed, re.M)
+    assert re.search(r"^ *box .* 1st-id +s/w +all +s/w +pauses +s/w", printed, re.M)
+    data = json.loads(out.read_text())
+    rows = data["levels"]
+    for r in rows:
+        assert set(r["shortcuts"]) == set(SHORTCUTS) and r["nudged"]["variants"] >= 1
+        assert r["shortcuts"]["first-id"]["episodes"] == 1 and r["shortcuts"]["random-pauses"]["episodes"] == 20
+    assert rows[0]["first_moves_that_win"] == ["cut_pin(1)"]  # the opener: one cut wins
+    assert rows[0]["shortcuts"]["first-id"]["stars"] == [3] and data["all"]["shortcuts"]["first-id"]["stars_per_win"] == 3
+
+    def target(rows, words):
+        return next(t for t in _targets(rows, check_needs=False) if words in t["target"])
+
+    assert target(rows, "single first action")["met"] is True
+    assert target(rows, "nudges")["met"] is True
+    moved = [dict(r) for r in rows]
+    moved[1] = dict(moved[1], first_moves_that_win=["cut_pin(2)"])  # a non-opener won by one cut
+    assert target(moved, "single first action") == {
+        "target": target(rows, "single first action")["target"], "met": False, "figure": "b1_l13 (cut_pin(2))"}
+    moved[2] = dict(moved[2], nudged=dict(moved[2]["nudged"], won=1, variants=2, share=0.5))
+    assert target(moved, "nudges")["met"] is False and "b4_l12 1/2" in target(moved, "nudges")["figure"]
+    lucky = [dict(r) for r in rows]
+    lucky[1] = dict(lucky[1], shortcuts=dict(lucky[1]["shortcuts"], **{
+        "random-pauses": {"episodes": 20, "wins": 7, "rate": 0.35, "stars": [1] * 7}}))
+    assert target(lucky, "random-pauses a third")["figure"] == "b1_l13 7/20"
+    # The shortcuts' mean rates against the reference's exact one: a shortcut that loses the two later levels
+    # is under it (b1_l01 is won by everything), one that wins every level is over it.
+    def with_rate(name, rate):
+        return [dict(r, shortcuts=dict(r["shortcuts"], **{name: {"episodes": 1, "wins": int(rate), "rate": rate,
+                                                                 "stars": [3] * int(rate)}})) for r in rows]
+    humble = [dict(r, shortcuts={n: (v if r["level"] == "b1_l01" else dict(v, wins=0, rate=0.0, stars=[]))
+                                 for n, v in r["shortcuts"].items()}) for r in rows]
+    assert target(humble, "no shortcut baseline")["met"] is True
+    assert target(with_rate("all-at-once", 1.0), "no shortcut baseline")["met"] is False
+    assert "all-at-once 100.0 %" in target(with_rate("all-at-once", 1.0), "no shortcut baseline")["figure"]
 
 
 def test_needs_tells_a_needed_element_from_decoration():
@@ -763,7 +818,7 @@ def test_prompt_states_legend_rules_numbers_and_a_valid_example():
     for needle in ("cut_pin(id)", "cut_active_pin(id)", "pop_bubble(id)", "tap_air_cushion(id, times=n)",
                    "sleep(seconds)", "success()", "fail()", "1, 3, 5", f"{C.MAX_ACTIONS} actions",
                    f"{C.ACTION_INTERVAL:g} s", f"{C.RUN_ON_CAP:g} s", "Spiders", "Magic hats", "Bubbles", "stars",
-                   f"{C.GRAVITY:g} px/s^2", f"{C.OMNOM_RADIUS:g} px)", "cut_pin(2, 3)", "hook"):
+                   "cut_pin(2, 3)", "hook", "Advice", "top of\na swing"):
         assert needle in rules, needle
     obs.action_space.parse(prompt.example(obs))
     for fmt in PromptFormat:
@@ -787,9 +842,75 @@ def test_the_prompts_examples_win_no_level():
 
 
 def test_taut_is_said_only_of_a_stretched_rope():
-    from deepphy.envs.cuttherope.env import describe
+    from deepphy.envs.cuttherope.env import describe_state
 
     w = world_of(make(candies=[{"pos": (240, 300)}], pins=[{"pos": (240, 150), "length": 150.56},
                                                            {"pos": (100, 300), "length": 100}]))
-    text = describe(w, 0)
+    text = describe_state(w, 0)
     assert "P1 (rest length 151, slack by 0.6 px" in text and "P2 (rest length 100, taut, stretched 40.0 px" in text
+
+
+# -- information parity (the paper's prompt: ../shared/notes/paper-prompts.md, section 6) ----------------
+
+# Levels with every kind of element between them: spider, bubble, cushion (b2_l20); hook, barrier
+# (b3_l04); hats, barrier, spider, hook (b4_l15); halves, hook, spider (b5_l18); active pin,
+# spikes (b1_l19); walls (b3_l03).
+PARITY_LEVELS = ["b2_l20", "b3_l04", "b4_l15", "b5_l18", "b1_l19", "b3_l03"]
+NUMBER = re.compile(r"(?<![A-Za-z_])\d+(?:\.\d+)?")
+CALL = re.compile(r"\b[a-z_]+\([^()]*\)")
+
+
+def parity_prompts(level_id: str, state_text: bool) -> list[str]:
+    """The texts of the prompts a model gets on `level_id`, both formats: the first request,
+    one after an earlier decision, and one after a failed attempt; and the actions in them."""
+    from deepphy.chat import PromptFormat
+    from deepphy.envs.cuttherope.env import CutTheRopeEnv
+    from deepphy.prompts import build_messages
+    from deepphy.prompts.base import PastAttempt, PastStep
+
+    spec = get_spec("cuttherope")
+    prompt = spec.load_prompt()
+    options = CutTheRopeEnv.Options(state_text=state_text)
+    task = next(t for t in CutTheRopeEnv.tasks(options) if t.id == level_id)
+    env = CutTheRopeEnv(options)
+    first = env.reset(task)
+    plan = load_level(level_id).solution.actions
+    action = first.action_space.parse(plan[0])
+    result = env.step(action)
+    later = result.observation if result.observation is not None else first
+    recent = [PastStep(step=1, action=first.action_space.format(action), feedback=result.feedback,
+                       frame=first.images[0])] if result.observation is not None else []
+    env.reset(task)
+    lost = env.step(first.action_space.parse("fail()"))
+    failed = [PastAttempt(attempt=1, actions=["fail()"], outcome=lost.feedback, key_frames=lost.key_frames)]
+    texts = []
+    for fmt in PromptFormat:
+        for history, observation, steps in (([], first, []), ([], later, recent), (failed, first, [])):
+            messages = build_messages(prompt, fmt, task, observation, history, steps)
+            texts.append("\n".join(m.text for m in messages)
+                         + "\n" + "\n".join(i.caption for m in messages for i in m.images))
+    return texts
+
+
+@pytest.mark.parametrize("level_id", PARITY_LEVELS)
+def test_default_prompts_carry_no_numeric_state(level_id):
+    # The paper's prompt gives images, labels, counts, the action history, the menu, a glossary, the
+    # rules and advice: no coordinates, lengths, speeds, distances, physical constants or timings. The
+    # numbers left are ids, counts and the rules' own (at most 10 actions, 0.25 s after each, sleep
+    # 0.1-10 s, 1/3/5 puffs, a run-on of 10 s, 0-3 stars) and the seconds of a sleep the model chose.
+    allowed = {str(n) for n in range(11)} | {f"{C.SLEEP_MIN:g}", f"{C.ACTION_INTERVAL:g}"}
+    for text in parity_prompts(level_id, state_text=False):
+        chosen = {n for call in CALL.findall(text) for n in NUMBER.findall(call)}
+        numbers = set(NUMBER.findall(re.sub(r"\bb\d_l\d\d\b", "", text))) - allowed - chosen
+        assert not numbers, (level_id, sorted(numbers))
+        for word in ("px", "t = ", "velocity", "rest length", "radius", "deg", "candy weights"):
+            assert word not in text, (level_id, word)
+
+
+def test_state_text_restores_the_numbers():
+    default = parity_prompts("b3_l04", state_text=False)
+    numeric = parity_prompts("b3_l04", state_text=True)
+    for text in numeric:
+        assert f"{C.GRAVITY:g} px/s^2" in text and "t = " in text
+    assert any("rest length" in t and "velocity" in t and "switches in" in t for t in numeric)
+    assert len(default) == len(numeric) == 6

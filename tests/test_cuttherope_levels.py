@@ -32,3 +32,40 @@ def test_no_level_but_an_opener_is_won_by_random_a_third_of_the_time():
     assert [k for k, r in rates.items() if wins_by_luck(k, r)] == []
     low, high = BASELINE_TARGET  # 6-16 %: the reference's "one in nine", roughly
     assert low <= sum(rates.values()) / len(rates) <= high
+
+
+def _pin_cuts(level) -> list[tuple[int, ...]]:
+    """The stored plan's cuts of pins' ropes, in order (each the ids cut at one moment)."""
+    from deepphy.envs.cuttherope.oracle import ANY
+
+    return [a.ids for a in map(ANY.parse, level.solution.actions) if a.name == "cut_pin"]
+
+
+def test_ids_tell_nothing_of_the_solution():
+    # Pins are numbered in an order drawn from the level's id, so over the levels with two pins or
+    # more the stored plans' first cuts name P1 about as often as chance would (k of n ids: k/n),
+    # and their cuts come in ascending id order about as often as a random numbering gives (the
+    # share of the n! numberings that put them in order). Numbered in the designs' order, 50 of 56
+    # first cuts named P1 (about 33 expected) and 34 of 48 plans cut in ascending order.
+    import itertools
+    import math
+
+    first_p1, ascending = [], []  # (observed, its chance) per level
+    for level_id in level_ids():
+        level = load_level(level_id)
+        n, cuts = len(level.pins), _pin_cuts(load_level(level_id))
+        if n < 2 or not cuts:
+            continue
+        first_p1.append((1 in cuts[0], len(cuts[0]) / n))
+        if len(cuts) >= 2:
+            def in_order(label) -> bool:
+                keys = [min(label[i - 1] for i in cut) for cut in cuts]
+                return keys == sorted(keys)
+            numberings = list(itertools.permutations(range(1, n + 1)))
+            chance = sum(map(in_order, numberings)) / len(numberings)
+            ascending.append((in_order(tuple(range(1, n + 1))), chance))
+    for name, pairs in (("first cut names P1", first_p1), ("cuts in ascending order", ascending)):
+        observed = sum(o for o, _ in pairs)
+        expected = sum(p for _, p in pairs)
+        sd = math.sqrt(sum(p * (1 - p) for _, p in pairs))
+        assert len(pairs) >= 30 and abs(observed - expected) <= 2.5 * sd, (name, observed, expected, sd, len(pairs))

@@ -21,12 +21,17 @@ from deepphy.protocol import LocalEnv, MemoryArtifacts, run_episode
 # What the paper gave in numbers, per environment (besides attempt and step numbers, block
 # indices, cells and radius levels, which are small integers): PHYRE's radius levels as
 # shares of the width (1/128 .. 1/8); I-PHYRE's time window (0.0 to 15 s); Kinetix's goal
-# distances (pixels); Pooltool's ball numbers (1 to 9).
+# distances (pixels); Pooltool's ball numbers (1 to 9). Cut the Rope's are our protocol's own
+# mechanics, which the paper's real-time game had no need to state: the range `sleep` accepts,
+# the 0.25 s the world runs after each action so that its first consequence shows, the 10 s it
+# runs on at the end; and the level's number (b1_l01).
 ALLOWED_PHRASES = {
     "phyre": [r"1/128", r"1/8\b", r"\b5 ?x ?5 grid"],
     "iphyre": [r"\b0\.0 to less than 15\b", r"\(15 s\)"],
     "kinetix": [r"(?i)goal distance[^\n]*?\d+ px", r"\(was \d+ px\)", r"last \d+"],
     "pooltool": [],
+    "cuttherope": [r"\b0\.1\s+to\s+10\s+seconds", r"sleep\(0\.1\.\.10\)", r"runs\s+for\s+0\.25\s+s", r"(?:up\s+to|at\s+most)\s+10\s+s\b",
+                   r"\bb\d_l\d\d\b"],
 }
 SMALL = {str(k) for k in range(26)}  # indices, cells, radius levels, attempt and step numbers
 UNIT = re.compile(r"\d+(?:\.\d+)?\s*(?:px|pixels?|m/s|metres|meters|seconds?|s\b|px/s|%|x\b|degrees)")

@@ -18,7 +18,7 @@ from deepphy.envs.shortcuts import ShortcutContext, UnknownShortcut, shortcut_fo
 from deepphy.protocol import LocalEnv, MemoryArtifacts, run_episode
 
 # The cheap environments, played for real (Kinetix compiles JAX: its policy is checked on its space).
-PLAYED = ["phyre", "iphyre", "pooltool"]
+PLAYED = ["phyre", "iphyre", "pooltool", "cuttherope"]
 
 
 def play(env: str, agent: str, n_tasks: int = 2, attempts: int = 3):
@@ -36,7 +36,7 @@ def play(env: str, agent: str, n_tasks: int = 2, attempts: int = 3):
 
 
 def test_every_environment_declares_shortcuts_that_are_baselines_without_an_endpoint():
-    for name in ["phyre", "iphyre", "kinetix", "pooltool"]:
+    for name in ["phyre", "iphyre", "kinetix", "pooltool", "cuttherope"]:
         declared = shortcuts(get_spec(name))
         assert declared, f"{name} declares no shortcut baseline"
         for short in declared:
@@ -104,3 +104,63 @@ def test_the_cli_refuses_an_unknown_shortcut_before_ray_starts(deepphy_cmd, tmp_
     assert proc.stderr.strip().splitlines() == [
         "deepphy: error: iphyre has no shortcut baseline 'shortcut-nope' (its shortcuts: shortcut-all-at-once)"]
     assert not (tmp_path / "r").exists()
+
+
+# -- Cut the Rope ---------------------------------------------------------------------------------------
+
+
+def cut_the_rope_records(agent: str, level_ids: list[str], runs: int = 1) -> dict:
+    from deepphy.protocol import run_attempt
+
+    spec = get_spec("cuttherope")
+    cls = spec.load()
+    config = RunConfig(env="cuttherope", model=agent, seed=0)
+    model = make_agent(agent, env="cuttherope")
+    tasks = {t.id: t for t in cls.tasks(cls.Options())}
+    return {(level, run): asyncio.run(run_attempt(spec, spec.load_prompt(), config, tasks[level], run, 1, [],
+                                                  LocalEnv(cls()), model, MemoryArtifacts()))
+            for level in level_ids for run in range(runs)}
+
+
+def test_cut_the_rope_first_id_acts_on_element_1_then_claims_success():
+    from deepphy.envs.cuttherope.level import load_level
+
+    for (level, _), record in cut_the_rope_records("shortcut-first-id", ["b1_l04", "b2_l03", "b4_l05"]).items():
+        texts = [s.action_text for s in record.steps]
+        assert texts[0] == ("cut_pin(1)" if load_level(level).pins else "pop_bubble(1)")
+        assert texts[1:] in ([], ["success()"])
+
+
+def test_cut_the_rope_all_at_once_swipes_every_rope_then_claims_success():
+    from deepphy.envs.cuttherope.level import load_level
+
+    for (level, _), record in cut_the_rope_records("shortcut-all-at-once", ["b1_l21", "b3_l05", "b5_l07"]).items():
+        texts = [s.action_text for s in record.steps]
+        n = len(load_level(level).pins)
+        assert n >= 3 and texts[0] == f"cut_pin({', '.join(map(str, range(1, n + 1)))})"
+        assert texts[1:] in ([], ["success()"])
+
+
+def test_cut_the_rope_random_pauses_waits_swipes_and_draws_by_the_request():
+    # Over a few levels and runs it pauses (0.1-3 s), cuts two or more ropes at once and acts
+    # on single elements; the same request gives the same reply, another run another episode;
+    # the calibration replays exactly what a run plays.
+    from deepphy.envs.cuttherope.calibrate import shortcut_episode
+    from deepphy.envs.cuttherope.level import load_level
+
+    levels = ["b1_l21", "b2_l07", "b3_l05"]
+    first = cut_the_rope_records("shortcut-random-pauses", levels, runs=4)
+    again = cut_the_rope_records("shortcut-random-pauses", levels, runs=4)
+    assert {k: r.deterministic_view() for k, r in first.items()} == {k: r.deterministic_view() for k, r in again.items()}
+    texts = [s.action_text for r in first.values() for s in r.steps]
+    sleeps = [float(t[6:-1]) for t in texts if t.startswith("sleep(")]
+    assert sleeps and all(0.1 <= s <= 3.0 for s in sleeps) and len(set(sleeps)) > 3
+    assert any(t.startswith("cut_pin(") and "," in t for t in texts)
+    assert any(t.startswith(("cut_pin(", "pop_bubble(", "tap_air_cushion(")) and "," not in t.replace(", times", "")
+               for t in texts)
+    by_level = {}
+    for (level, run), record in first.items():
+        by_level.setdefault(level, set()).add(tuple(s.action_text for s in record.steps))
+        won, stars = shortcut_episode(load_level(level), "random-pauses", 0, run)
+        assert (record.success, record.stars if record.success else 0) == (won, stars), (level, run)
+    assert all(len(episodes) > 1 for episodes in by_level.values())

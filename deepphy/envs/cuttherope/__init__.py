@@ -10,6 +10,7 @@
 - `oracle.py`: the search for winning plans, replay, the plans' timing;
 - `calibrate.py`: what a level measures (reference baseline, timing grid, robustness, what
   its three stars need);
+- `shortcuts.py`: the shortcut baselines (first-id, all-at-once, random-pauses);
 - `solve.py`: the command line (solvability report, calibration, search, make).
 Importing this package does not import pymunk.
 """
@@ -29,6 +30,7 @@ SPEC = EnvSpec(
     max_steps=MAX_ACTIONS,
     report=ReportSpec(stars=True, step_noun="action", step_checkpoints=(1, 3, 5, 10)),
     solver="deepphy.envs.cuttherope.solve:main",
+    shortcuts="deepphy.envs.cuttherope.shortcuts:SHORTCUTS",
     description="88 levels in 5 boxes (season 1's Cardboard, Fabric, Foil, Magic, Valentine): cut ropes, pop "
                 "bubbles, puff air so the candy reaches Om Nom; 0-3 stars",
 )

@@ -8,13 +8,17 @@ cuttherope calibrate`) and of the design checks (`... make`).
   episodes sample: every sequence of choices it can draw, played out;
 - `grid_share`: how many plans of a fixed timing grid win (the stored plan's number of
   element actions, each after a pause from GRID_PAUSES);
-- `robustness` (oracle.py): the stored plan with every sleep moved by +-0.1 s;
 - `needs`: which elements the 3-star plan needs: the oracle finds no 3-star plan with the
   element removed, or none that never uses it in an action (a rope cut at once is needed
   by being cut: removing it is the same as cutting it at t = 0); an obstacle (spikes, an
   electric barrier, a spider; bubbles, active pins and walls may be either) cannot be
   needed that way, so it must shut a way out: some plan that wins in the level without it
   loses with it;
+- `shortcut_baseline`: a shortcut baseline (shortcuts.py), episode by episode, with the
+  very draws `deepphy run --model shortcut-<name>` makes;
+- `nudged` (oracle.py): the stored plan with each action alone taken 0.1 s earlier and later;
+- `first_moves_that_win`: the element actions that win on their own at t = 0 (a level a
+  single first action wins asks for no plan);
 - `first_actions_all_win`: every first action, followed by waiting, wins (a level that
   needs no understanding at all);
 - `at_rest`: no candy moves in the first second when nothing is done (hooks held still).
@@ -26,9 +30,13 @@ import math
 
 import numpy as np
 
+from deepphy.envs.base import Task
+from deepphy.envs.cuttherope import SPEC
 from deepphy.envs.cuttherope import constants as C
-from deepphy.envs.cuttherope.env import Attempt, act
+from deepphy.envs.cuttherope.env import Attempt, CutTheRopeOptions, act
 from deepphy.envs.cuttherope.level import Level
+from deepphy.envs.cuttherope.shortcuts import SHORTCUTS
+from deepphy.envs.shortcuts import PREFIX, ShortcutContext
 from deepphy.envs.cuttherope.oracle import ANY, SEARCH_NODES, SUCCESS, Plan, moves, play, search, texts_of
 from deepphy.envs.cuttherope.sim import World
 from deepphy.envs.cuttherope.space import CutAction
@@ -71,6 +79,46 @@ def reference_baseline(level: Level, seed: int = 0, episodes: int = BASELINE_EPI
     stars = [s for won, s in outcomes if won]
     return {"episodes": episodes, "wins": len(stars), "rate": len(stars) / episodes, "stars": stars,
             "wins_by_run": [won for won, _ in outcomes]}
+
+
+# -- the shortcut baselines -------------------------------------------------------------------------
+
+RANDOM_SHORTCUTS = {"random-pauses"}  # the shortcuts that draw: played for many episodes; the others once
+
+
+def shortcut_episode(level: Level, name: str, seed: int, run: int) -> tuple[bool, int]:
+    """One episode of shortcut baseline `name` on `level` (attempt 1 of run `run`), with the
+    draws of `deepphy run --model shortcut-<name>` (deepphy/agents.py): (won, stars)."""
+    policy = SHORTCUTS[name].policy
+    attempt = Attempt(level)
+    task = Task(env=ENV, id=level.id, group=f"b{level.box}", params={"level": level.id, "state_text": False})
+    earlier: list[str] = []
+    for step in range(1, C.MAX_ACTIONS + 1):
+        space = attempt.space()
+        rng = seeded_rng("shortcut", PREFIX + name, seed, ENV, level.id, run, 1, step)  # as agents.shortcut_text
+        ctx = ShortcutContext(spec=SPEC, options=CutTheRopeOptions(), task=task, action_space=space,
+                              earlier=list(earlier), tried=[], rng=rng)
+        action = space.parse(policy(ctx))
+        attempt.play(action)
+        if attempt.done:
+            break
+        earlier.append(space.format(action))
+    return attempt.world.status == "won", attempt.stars
+
+
+def shortcut_baseline(level: Level, name: str, seed: int = 0, episodes: int = BASELINE_EPISODES) -> dict:
+    """{"episodes", "wins", "rate", "stars": [stars of each win]}: a deterministic shortcut
+    plays one episode (every run is the same)."""
+    n = episodes if name in RANDOM_SHORTCUTS else 1
+    outcomes = [shortcut_episode(level, name, seed, run) for run in range(n)]
+    stars = [s for won, s in outcomes if won]
+    return {"episodes": n, "wins": len(stars), "rate": len(stars) / n, "stars": stars}
+
+
+def first_moves_that_win(level: Level) -> list[str]:
+    """The element actions that win on their own at t = 0 (then success())."""
+    root = World.from_level(level)
+    return [text for text in texts_of(moves(root)) if play(level, [text, "success()"])[0]]
 
 
 class _TooMany(Exception):

@@ -66,6 +66,11 @@ PIN_RADIUS = 7.0  # drawn
 ROPE_STIFFNESS = 1.0  # candy weights of tension per px of stretch (omega = sqrt(g / 1 px) ~ 29 rad/s)
 ROPE_DAMPING = 18.0  # 1/s: tension (x candy mass) per px/s of stretching speed, only while stretched;
 #                      damping ratio ~0.3: a rope jerked taut throws the candy back at ~0.35 x its speed
+# A swing dies down, as in the game (the web game's Verlet chains lose a little of their motion
+# every frame and a hanging candy settles): while a rope pulls the candy, the candy's velocity
+# relaxes at ROPE_DRAG, so a free swing keeps exp(-ROPE_DRAG * t / 2) of its amplitude (half
+# in ~5.5 s, ~30 % after 10 s). A candy in free flight or in a bubble is not slowed by it.
+ROPE_DRAG = 0.25  # 1/s
 ROPE_RED_STRETCH = 12.0  # px of stretch at which a rope is drawn fully red (the web game's red ropes)
 ACTIVE_PIN_MARGIN = 0.0  # an active pin attaches a rope when the candy centre is within radius + margin
 SPIDER_SPEED = 58.0  # units/s a spider crawls along its rope toward the candy (39 map units/s x 1.5)

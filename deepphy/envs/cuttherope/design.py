@@ -11,7 +11,10 @@ its new mechanics and ends with levels that combine them with the earlier ones.
 
 Helpers: `rope` describes a pin and its rope; `make` builds a level, giving every loaded
 rope the rest length that holds the candy still (candies start at rest unless a level's
-idea says otherwise), slack ropes their slack and stretched ropes their stretch.
+idea says otherwise), slack ropes their slack and stretched ropes their stretch, and
+numbering each kind of element the model acts on (pins, active pins, bubbles, cushions) in
+an order drawn from the level's id, unrelated to the design's order or the solution. The
+ideas therefore speak of elements by place ("the left rope"), never by id.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import math
 
 from deepphy.envs.cuttherope import constants as C
 from deepphy.envs.cuttherope.level import BOXES, Level
+from deepphy.seeding import seeded_rng
 
 Point = tuple[float, float]
 
@@ -53,8 +57,22 @@ def make(id: str, title: str, idea: str, *, candies: list, ropes: list[dict] = (
         if r["track"] is not None:
             pin["track"] = r["track"]
         pins.append(pin)
-    return Level.model_validate({"id": id, "title": title, "idea": idea, "candies": specs, "pins": pins,
-                                 "om_nom": om_nom, "stars": stars, **elements})
+    numbered = {kind: _shuffled(id, kind, items) for kind, items in {
+        "pins": pins, **{k: list(elements.get(k, ())) for k in ACTED_ON_KINDS[1:]}}.items()}
+    return Level.model_validate({"id": id, "title": title, "idea": idea, "candies": specs, "om_nom": om_nom,
+                                 "stars": stars, **elements, **numbered})
+
+
+ACTED_ON_KINDS = ("pins", "active_pins", "bubbles", "cushions")  # the elements an action names by id
+FIRST_SWIPE = "b1_l20"  # the level that teaches cutting several ropes at once: no plan before it does
+
+
+def _shuffled(level_id: str, kind: str, items: list) -> list:
+    """The elements of one kind in the order that numbers them (1, 2, ...): a permutation of
+    the design's order drawn from the level's id and the kind, so that an id tells nothing
+    (the design lists elements in whatever order it thinks of them, often the solution's)."""
+    order = seeded_rng("cuttherope-ids", level_id, kind).permutation(len(items))
+    return [items[k] for k in order]
 
 
 def _anchor(r: dict) -> Point:
@@ -135,23 +153,31 @@ BOX1: list[Level] = [
          "Cut the rope and the candy falls straight to Om Nom, through the three stars.",
          candies=[(240, 200)], ropes=[rope(240, 80)], om_nom=(240, 600),
          stars=[(240, 300), (240, 390), (240, 480)]),
-    make("b1_l02", "Which rope?",
-         "Two ropes hold the candy: cut the one on the left and the other swings it into Om Nom; cut the "
-         "other and it swings away from him.",
-         candies=[(240, 280)], ropes=[rope(80, 120), rope(400, 120)], om_nom=(400, 398),
-         stars=[(284, 314), (319, 331), (357, 342)]),
-    make("b1_l03", "A slack rope catches",
-         "Cut the short rope: the candy falls until the long slack rope catches it, and swings on it to Om Nom.",
-         candies=[(150, 200)], ropes=[rope(150, 100), rope(330, 140, slack=120)], om_nom=(330, 505),
-         stars=[(150, 300), (199, 421), (266, 443)]),
-    make("b1_l04", "Let go on the swing",
-         "Cut the rope above the candy and it swings on the other; let it go when the swing throws it toward Om Nom.",
-         candies=[(80, 200)], ropes=[rope(80, 100), rope(200, 80, slack=0)], om_nom=(400, 450),
-         stars=[(140, 245), (290, 290), (350, 360)]),
+    make("b1_l02", "One, then the other",
+         "Two ropes hold the candy up; a long slack rope hangs from a pin on the right. Cut the left rope and, at "
+         "once after, the right one: the candy, just starting to swing, falls into the slack rope's reach, which "
+         "catches it and swings it through the stars into Om Nom. Cut both at the same moment and it drops too "
+         "straight; let go later and it swings too far; cut the slack rope and nothing catches it.",
+         candies=[(160, 200)], ropes=[rope(50, 120), rope(230, 80), rope(300, 300, slack=120)], om_nom=(360, 520),
+         stars=[(218, 351), (235, 466), (254, 604)]),
+    make("b1_l03", "The other way round",
+         "As in the level before, but mirrored and lower: cut the right rope and, at once after, the left one, and "
+         "the slack rope on the left catches the candy and swings it down through the stars into Om Nom. The other "
+         "order swings the candy the wrong way; both at once drop it straight past the slack rope's swing.",
+         candies=[(320, 180)], ropes=[rope(200, 60), rope(460, 90), rope(120, 300, slack=120)], om_nom=(80, 580),
+         stars=[(250, 362), (223, 521), (208, 642)]),
+    make("b1_l04", "Three in a row",
+         "Three ropes. Cut the right one and the short one below, one after the other, and the left one swings the "
+         "candy down; let go of it a moment later and the candy is flung left through the stars into Om Nom. Let "
+         "go at once and it drops short; later and it swings past.",
+         candies=[(280, 240)], ropes=[rope(140, 130), rope(390, 130), rope(280, 300, slack=100)], om_nom=(73, 548),
+         stars=[(203, 303), (145, 380), (110, 451)]),
     make("b1_l05", "Up with a bubble",
-         "Cut the rope: the candy drops into the bubble, which carries it up through the stars into Om Nom.",
-         candies=[(240, 500)], ropes=[rope(240, 380)], bubbles=[{"pos": (240, 590)}], om_nom=(240, 100),
-         stars=[(240, 340), (240, 260), (240, 190)]),
+         "Cut the rope above the candy: it drops into the bubble, which carries it up until the slack rope on the "
+         "right comes taut and swings it round, floating, toward the top of its pin. Let it go under Om Nom and it rises "
+         "into him; let it go at once and it floats straight up past him.",
+         candies=[(120, 400)], ropes=[rope(120, 280), rope(300, 460, slack=40)], bubbles=[{"pos": (120, 480)}],
+         om_nom=(240, 100), stars=[(120, 330), (185, 262), (243, 175)]),
     make("b1_l06", "Steer the bubble",
          "The candy starts in a bubble held down by two ropes. Cut one and the bubble drifts over the other pin; "
          "cut the second when the bubble is under Om Nom and it rises straight to him.",
@@ -164,45 +190,49 @@ BOX1: list[Level] = [
          candies=[(120, 300)], bubbles=[{"pos": (120, 300)}], ropes=[rope(40, 420), rope(265, 420)],
          om_nom=(265, 520), stars=[(170, 240), (245, 220), (265, 330)]),
     make("b1_l08", "Throw it into the bubble",
-         "Cut the rope above the candy and, at once, the other one: the candy, barely swinging yet, drops into the "
-         "bubble under Om Nom, which carries it up through the stars into him. Let go a moment later and the swing "
-         "throws the candy at Om Nom directly, past every star; cut the other rope first and it drops straight down, "
-         "wide of the bubble.",
-         candies=[(110, 180)], ropes=[rope(110, 100), rope(230, 100, slack=0)], bubbles=[{"pos": (240, 560)}],
-         om_nom=(260, 340), stars=[(176, 360), (234, 490), (234, 425)]),
+         "Cut the rope above the candy and, at once after, the other one: the candy, just starting to swing, drops "
+         "into the bubble, which carries it up through the stars into Om Nom. Cut both at the same moment and it "
+         "drops straight past the bubble; let go later and the swing throws it past; cut the other rope first and "
+         "it swings the wrong way.",
+         candies=[(110, 220)], ropes=[rope(110, 140), rope(230, 140, slack=0)], bubbles=[{"pos": (200, 500)}],
+         om_nom=(220, 100), stars=[(184, 455), (212, 504), (212, 312)]),
     make("b1_l09", "The rope steers the bubble",
-         "The bubble lifts the candy straight up until the slack rope comes taut; then the rope turns it, floating, "
-         "around its pin to Om Nom.",
-         candies=[(90, 300)], ropes=[rope(90, 190), rope(230, 300, slack=30)], bubbles=[{"pos": (90, 400)}],
-         om_nom=(250, 120), stars=[(90, 235), (120, 150), (180, 120)]),
+         "Cut the rope above the candy: it drops into the bubble and floats up, until the slack rope on the right "
+         "comes taut and swings it round, floating, through the stars and just past Om Nom. Pop the bubble as it "
+         "passes over him and the candy drops into him; pop it early and it drops short of him, late and the rope "
+         "swings it past him.",
+         candies=[(80, 340)], ropes=[rope(80, 250), rope(360, 400, slack=40)], bubbles=[{"pos": (80, 440)}],
+         om_nom=(194, 201), stars=[(80, 410), (80, 290), (116, 183)]),
     make("b1_l10", "An automatic rope",
          "Cut the rope: as the falling candy enters the dashed circle, the automatic rope grabs it and swings it "
-         "over to Om Nom.",
-         candies=[(110, 160)], ropes=[rope(110, 60)], active_pins=[{"pos": (200, 400), "radius": 110}],
-         om_nom=(320, 500), stars=[(110, 270), (170, 500), (260, 500)]),
+         "round. Let go of the automatic rope as the swing carries the candy up toward Om Nom and it flies into "
+         "him; hold on and the swing carries it back.",
+         candies=[(80, 160)], ropes=[rope(80, 60)], active_pins=[{"pos": (140, 360), "radius": 130}],
+         om_nom=(313, 456), stars=[(80, 332), (80, 455), (174, 479)]),
     make("b1_l11", "Stop the bubble",
          "The bubble would carry the candy off the top; the automatic rope catches it on the way and holds it "
          "floating. Pop the bubble then, and the rope swings the candy down to Om Nom.",
          candies=[(100, 560)], ropes=[rope(100, 460)], bubbles=[{"pos": (100, 640)}],
          active_pins=[{"pos": (200, 250), "radius": 120}], om_nom=(345, 300), stars=[(100, 380), (130, 172), (250, 390)]),
     make("b1_l12", "A stretched rope",
-         "Two red ropes pull against each other. Cut the lower one: the upper one contracts and throws the candy up "
-         "past its pin, catches it and swings it back down into Om Nom. Let go of it in flight and the candy flies "
-         "off the right edge.",
-         candies=[(140, 520)], ropes=[rope(40, 627, balance=True), rope(280, 380, stretch=35)], om_nom=(330, 590),
-         stars=[(230, 445), (440, 385), (370, 470)]),
+         "Two ropes pull against each other, the upper one red: stretched. Cut the lower one: the red rope contracts "
+         "and throws the candy up past its pin, catches it and swings it back. Let go of it on the swing back and "
+         "the candy flies left into Om Nom; let go in the throw and it flies off, hold on and it swings on.",
+         candies=[(180, 480)], ropes=[rope(80, 580, balance=True), rope(260, 300, stretch=45)], om_nom=(75, 492),
+         stars=[(319, 232), (327, 310), (271, 451)]),
     make("b1_l13", "Slingshot to a rope",
          "Cut the lower rope and at once the red one: the red rope slings the candy up into the automatic rope's "
-         "circle, which catches it at the top, over Om Nom. Let go there and it drops to him, missing the stars on the "
-         "circle; let it swing round once through them first, and let go as it swings back toward him. Keep the red "
-         "rope a moment longer and it pulls the candy back; wait too long and the swing throws it past him.",
-         candies=[(110, 620)], ropes=[rope(30, 700, balance=True), rope(200, 500, stretch=45)],
-         active_pins=[{"pos": (270, 390), "radius": 85}], om_nom=(370, 560), stars=[(180, 535), (190, 426), (314, 353)]),
+         "circle, which catches it and swings it round through the stars. Let go as it swings back down toward Om "
+         "Nom. Keep the red rope and it pulls the candy back; let go of the automatic rope too soon or too late and "
+         "the swing throws the candy past him.",
+         candies=[(90, 620)], ropes=[rope(10, 700, balance=True), rope(160, 520, stretch=35)],
+         active_pins=[{"pos": (260, 440), "radius": 70}], om_nom=(202, 598), stars=[(222, 480), (325, 437), (234, 503)]),
     make("b1_l14", "Tug of war",
-         "Two stretched ropes pull the candy both ways. Cut one and the other throws the candy past its pin; the "
-         "right one's swing brings it round to Om Nom, the left one's away from him.",
-         candies=[(240, 380)], ropes=[rope(60, 380, stretch=25), rope(420, 380, balance=True)],
-         om_nom=(300, 570), stars=[(320, 375), (400, 430), (380, 560)]),
+         "Three ropes pull the candy three ways. Cut the two on the right and the left one swings the candy down; "
+         "let go of it a moment later and it is flung left through the stars into Om Nom. Let go at once and it "
+         "drops short; later and it swings past.",
+         candies=[(240, 280)], ropes=[rope(130, 170), rope(320, 200), rope(280, 220, slack=60)], om_nom=(78, 468),
+         stars=[(188, 315), (145, 348), (114, 394)]),
     make("b1_l15", "Sling, float, pop",
          "Cut the lower rope and at once the red one: the red rope slings the candy up into the bubble, which carries "
          "it up in a line over Om Nom. Pop it when it has risen through the stars and the candy drops straight into him; "
@@ -211,20 +241,22 @@ BOX1: list[Level] = [
          candies=[(120, 600)], ropes=[rope(60, 660, balance=True), rope(160, 520, stretch=30)],
          bubbles=[{"pos": (210, 470)}], om_nom=(270, 575), stars=[(240, 400), (251, 300), (251, 200)]),
     make("b1_l16", "Swing out, let go",
-         "Cut the left rope: the right one swings the candy out to the right; let go at the far end of the swing and "
-         "it drops to Om Nom. Cut the right rope first and the swing goes the wrong way.",
-         candies=[(210, 270)], ropes=[rope(120, 150), rope(300, 150)], om_nom=(420, 520),
-         stars=[(280, 320), (350, 300), (410, 400)]),
+         "Three ropes, one of them slack. Cut them one after the other, without a pause, in the one order that "
+         "swings the candy out to the right and lets it go through the stars into Om Nom. Every rope plays its "
+         "part: the wrong order, or a pause, and it falls wide.",
+         candies=[(200, 200)], ropes=[rope(120, 120), rope(310, 120), rope(80, 100, slack=60)], om_nom=(369, 388),
+         stars=[(255, 245), (291, 269), (327, 312)]),
     make("b1_l17", "Under the spikes",
          "Spikes block the straight drop to Om Nom. Cut the left rope: the right one swings the candy out and back; "
          "let go as it swings back low, and it flies under the spikes into Om Nom.",
          candies=[(200, 250)], ropes=[rope(120, 150), rope(330, 120)], spikes=[spikes((110, 310), (205, 310))],
          om_nom=(180, 440), stars=[(290, 305), (330, 330), (250, 370)]),
     make("b1_l18", "Throw over the spikes",
-         "A row of spikes stands between the candy and Om Nom. The red rope can throw the candy over it, if you let "
-         "go at the right moment.",
-         candies=[(90, 500)], ropes=[rope(20, 560, balance=True), rope(190, 380, stretch=40)],
-         spikes=[spikes((290, 520), (290, 700))], om_nom=(390, 640), stars=[(150, 440), (250, 360), (350, 520)]),
+         "A row of spikes stands between the candy and Om Nom. Cut the lower rope: the red rope throws the candy up "
+         "past its pin and swings it back and forth; let go as a swing carries it right, high enough to clear the "
+         "spikes, and it falls into Om Nom.",
+         candies=[(90, 520)], ropes=[rope(0, 630, balance=True), rope(250, 320, stretch=50)],
+         spikes=[spikes((217, 430), (217, 710))], om_nom=(305, 607), stars=[(388, 248), (314, 431), (104, 463)]),
     make("b1_l19", "Not that rope",
          "Cut the left rope and the candy swings out on the right one, toward Om Nom behind a row of spikes; but "
          "the automatic rope lies across the swing: it grabs the candy and, left holding it alone, swings it into "
@@ -234,23 +266,23 @@ BOX1: list[Level] = [
          candies=[(200, 250)], ropes=[rope(100, 130), rope(320, 150)], active_pins=[{"pos": (320, 400), "radius": 100}],
          spikes=[spikes((370, 450), (370, 680))], om_nom=(430, 600), stars=[(260, 300), (380, 300), (430, 420)]),
     make("b1_l20", "Together",
-         "Cut either rope alone and the other swings the candy into spikes. Cut both in one swipe, cut_pin(1, 2), "
-         "and it drops straight to Om Nom.",
-         candies=[(240, 300)], ropes=[rope(100, 180), rope(380, 180)],
-         spikes=[spikes((60, 330), (60, 560)), spikes((420, 330), (420, 560))], om_nom=(240, 620),
-         stars=[(240, 380), (240, 450), (240, 530)]),
+         "Cut the rope above the candy: it falls into the two slack ropes, swings and settles between them, over Om "
+         "Nom. Then cut both in one swipe and it drops straight into him; cut the left one alone and the other swings "
+         "it into the spikes, cut all three at once and it drops past him.",
+         candies=[(190, 240)], ropes=[rope(190, 140), rope(60, 200, slack=170), rope(400, 200, slack=50)],
+         spikes=[spikes((440, 420), (440, 620))], om_nom=(300, 640),
+         stars=[(190, 330), (260, 400), (300, 540)]),
     make("b1_l21", "Twin slingshot",
-         "Two red ropes pull the candy up against the rope below. Cut the lower one and they throw it up through a "
-         "star and past their pins; let both go in one swipe, whenever you like, and it falls straight back, through "
-         "the others, to Om Nom. Let go of one alone and the other pulls the candy aside.",
-         candies=[(240, 380)], ropes=[rope(120, 260, stretch=25), rope(360, 260, stretch=25), rope(240, 560, balance=True)],
-         om_nom=(240, 650), stars=[(240, 300), (240, 480), (200, 590)]),
-    make("b1_l22", "Two now, one later",
-         "Three ropes: cut two now, the left one among them, and the third swings the candy out to the right; let "
-         "go of it near the far end of the swing and it drops through the stars into Om Nom. Let go at once and it "
-         "flies low, into the spikes; a little later and it flies under the stars.",
-         candies=[(240, 300)], ropes=[rope(140, 200), rope(340, 200), rope(320, 40, slack=10)],
-         spikes=[spikes((330, 440), (365, 440))], om_nom=(420, 530), stars=[(320, 335), (405, 290), (420, 420)]),
+         "Two red ropes pull the candy up against the rope below. Cut the lower one and they throw it up between "
+         "their pins; let both go in one swipe as it comes back down, and it falls through the stars into Om Nom. "
+         "Let go of one alone and the other pulls the candy aside; of both at once, or too late, and it misses him.",
+         candies=[(260, 460)], ropes=[rope(120, 300, stretch=15), rope(400, 380, stretch=35), rope(260, 710, balance=True)],
+         om_nom=(290, 595), stars=[(320, 316), (304, 334), (282, 456)]),
+    make("b1_l22", "Which order?",
+         "Three ropes, one of them slack. Cut the right one and the slack one, then at once the left one: the "
+         "candy, flung right, flies through the stars into Om Nom. Any other order, or a pause, and it falls short.",
+         candies=[(160, 280)], ropes=[rope(50, 170), rope(300, 170), rope(120, 180, slack=100)], om_nom=(325, 481),
+         stars=[(214, 326), (249, 354), (283, 401)]),
     make("b1_l23", "Up, across, down",
          "Let the bubble take the candy up into the automatic rope's reach, pop it, and let go of the automatic rope "
          "when its swing points at Om Nom.",
@@ -274,11 +306,11 @@ def cushion(x: float, y: float, angle: float) -> dict:
 
 BOX2: list[Level] = [
     make("b2_l01", "A puff of air",
-         "Tap the air cushion: its puffs push the hanging candy into a swing. Cut the rope as the candy swings "
-         "toward Om Nom and it flies to him; three puffs and a cut at the top of the swing drop it through every "
-         "star.",
+         "Tap the air cushion: its puffs push the hanging candy into a swing. Cut the rope and the candy flies on "
+         "toward Om Nom; a tutorial, it reaches him however the two are done, but only three puffs and a cut near "
+         "the top of the swing take it through every star.",
          candies=[(140, 360)], ropes=[rope(140, 200)], cushions=[cushion(30, 360, 0)],
-         om_nom=(300, 470), stars=[(220, 360), (290, 280), (300, 390)]),
+         om_nom=(240, 460), stars=[(220, 360), (290, 280), (300, 390)]),
     make("b2_l02", "Puff the swing",
          "Puff the hanging candy: enough puffs and it swings up and round to Om Nom, through the stars; too few and "
          "it swings back.",
@@ -323,15 +355,17 @@ BOX2: list[Level] = [
          candies=[(160, 420)], ropes=[rope(160, 260)], cushions=[cushion(30, 420, 0)], bubbles=[{"pos": (300, 360)}],
          om_nom=(330, 80), stars=[(240, 420), (320, 270), (340, 170)]),
     make("b2_l09", "A spider",
-         "A spider crawls down the rope that holds the candy. Cut that rope before it arrives: the slack rope "
-         "catches the candy and swings it to Om Nom.",
-         candies=[(150, 200)], ropes=[rope(150, 80, spider=0.5), rope(330, 140, slack=120)], om_nom=(330, 505),
-         stars=[(150, 300), (199, 421), (266, 443)]),
+         "A spider crawls down the rope that holds the candy. Cut that rope before it arrives: the candy falls, the "
+         "slack rope catches it and swings it toward Om Nom; let go of it on the way and the candy flies on through "
+         "the stars into him. Hold on and the swing carries it back; let go at once and it falls short.",
+         candies=[(150, 200)], ropes=[rope(150, 100, spider=0.5), rope(350, 160, slack=80)], om_nom=(390, 566),
+         stars=[(150, 346), (225, 410), (308, 471)]),
     make("b2_l10", "Race the spider",
-         "A spider comes down the rope on the left: cut it before it arrives, and the candy swings on the other "
-         "rope; let go of that one at the right point of the swing.",
-         candies=[(220, 260)], ropes=[rope(100, 120, spider=0.0), rope(360, 120)], om_nom=(420, 480),
-         stars=[(300, 300), (380, 300), (430, 340)]),
+         "A spider comes down the left rope. Cut the three ropes one after the other, without a pause, in the right "
+         "order: the candy is flung right, through the stars into Om Nom. The wrong order flings it wide; wait, and "
+         "the spider takes it.",
+         candies=[(200, 280)], ropes=[rope(120, 140, spider=0.5), rope(340, 200), rope(320, 180, slack=60)],
+         om_nom=(383, 528), stars=[(254, 337), (303, 384), (341, 441)]),
     make("b2_l11", "Before the spider, after the swing",
          "A spider comes down one of the two short ropes: cut both before it arrives, and the slack rope catches the "
          "candy and swings it out to the right. Let go of it on the swing back, and it flies left to Om Nom; let go "
@@ -339,26 +373,28 @@ BOX2: list[Level] = [
          candies=[(240, 240)], ropes=[rope(225, 140, spider=0.0), rope(400, 190), rope(320, 70, slack=40)],
          om_nom=(150, 600), stars=[(410, 280), (217, 330), (173, 442)]),
     make("b2_l12", "Escape upward",
-         "A spider is coming down the rope: cut it, and the bubble under the candy carries it up out of reach, "
-         "to Om Nom.",
-         candies=[(300, 480)], ropes=[rope(300, 330, spider=0.0)], bubbles=[{"pos": (300, 570)}], om_nom=(300, 90),
-         stars=[(300, 380), (300, 280), (300, 180)]),
-    make("b2_l13", "Puff away from the spider",
-         "A spider comes down the only rope. Puff the candy into a swing, and cut the rope at the top of the swing, "
-         "over Om Nom, before the spider arrives. A weak swing let go early falls short, onto the spikes.",
-         candies=[(140, 360)], ropes=[rope(140, 200, spider=1.0)], cushions=[cushion(30, 360, 0)],
-         spikes=[spikes((205, 405), (258, 405))], om_nom=(300, 470), stars=[(220, 360), (290, 280), (300, 390)]),
-    make("b2_l14", "Spider on a red rope",
-         "A spider starts down the stretched rope. Cut the rope below and the red rope throws the candy up past its "
-         "pin, where it stops and falls; let go of the red rope while it falls and it drops into Om Nom. Let go too "
-         "soon and it flies off the right edge; hold on and the rope swings it away, and the spider comes.",
-         candies=[(120, 560)], ropes=[rope(30, 660, balance=True), rope(230, 400, stretch=35, spider=0.0)],
-         om_nom=(300, 630), stars=[(200, 470), (393, 360), (320, 520)]),
-    make("b2_l15", "Spider and the automatic rope",
-         "Cut the spider's rope: the candy falls, the automatic rope catches it and swings it round. Let go of that "
-         "rope when the candy flies toward Om Nom.",
-         candies=[(120, 150)], ropes=[rope(120, 50, spider=0.0)], active_pins=[{"pos": (200, 360), "radius": 110}],
-         om_nom=(305, 570), stars=[(120, 280), (250, 480), (300, 430)]),
+         "A spider is coming down the rope: cut it, and the bubble under the candy carries it up out of reach. Om Nom "
+         "waits off to the left: puff the bubble over as it rises past the cushion, hard enough to reach him.",
+         candies=[(340, 500)], ropes=[rope(340, 350, spider=0.0)], bubbles=[{"pos": (340, 590)}],
+         cushions=[cushion(460, 320, 180)], om_nom=(145, 281), stars=[(340, 531), (340, 420), (249, 361)]),
+    make("b2_l13", "Away from the spider",
+         "A spider comes down the right rope. Cut the three ropes in the right order, one right after the other, "
+         "and the candy is flung left through the stars into Om Nom. The wrong order flings it wide; wait, and the "
+         "spider takes it.",
+         candies=[(280, 240)], ropes=[rope(200, 160), rope(360, 100, spider=1.0), rope(360, 60, slack=100)],
+         om_nom=(105, 447), stars=[(218, 274), (177, 308), (146, 355)]),
+    make("b2_l14", "Three ropes and a spider",
+         "A spider starts down the left rope at once. Cut the three ropes one after the other, without a pause, in "
+         "the right order: the candy is flung left through the stars into Om Nom. The wrong order flings it wide; "
+         "wait, and the spider takes it.",
+         candies=[(240, 240)], ropes=[rope(130, 100, spider=0.0), rope(350, 160), rope(240, 100, slack=100)],
+         om_nom=(93, 413), stars=[(192, 267), (154, 297), (126, 341)]),
+    make("b2_l15", "Before the spider, in order",
+         "A spider comes down the right rope. Cut the three ropes one after the other, without a pause, in the "
+         "right order: the candy swings out to the right and flies through the stars into Om Nom. The wrong order "
+         "drops it wide; wait, and the spider takes it.",
+         candies=[(200, 280)], ropes=[rope(90, 200), rope(310, 170, spider=0.5), rope(360, 60, slack=60)],
+         om_nom=(363, 468), stars=[(252, 315), (295, 347), (326, 394)]),
     make("b2_l16", "Cut loose before the spider",
          "A spider climbs the rope that ties the bubble down. Cut it loose in time, puff the rising bubble over, "
          "and pop it above Om Nom.",
@@ -370,11 +406,12 @@ BOX2: list[Level] = [
          candies=[(90, 560)], bubbles=[{"pos": (90, 560)}], ropes=[rope(90, 660)], cushions=[cushion(20, 330, 0)],
          spikes=[spikes((30, 150), (190, 150)), spikes((310, 150), (460, 150))], om_nom=(250, 60),
          stars=[(90, 420), (180, 300), (250, 200)]),
-    make("b2_l18", "Cut two, before the spider",
-         "Two ropes hold the candy right above Om Nom, a spider on one of them: cut both in one swipe and the candy "
-         "drops straight through the stars; one at a time, it swings off the line.",
-         candies=[(240, 280)], ropes=[rope(120, 160, spider=0.5), rope(360, 160)], om_nom=(240, 630),
-         stars=[(240, 380), (240, 460), (240, 540)]),
+    make("b2_l18", "The spider's rope first",
+         "Two ropes hold the candy, a spider coming down the left one. Cut that one first: the right one swings the "
+         "candy out; let go as the swing carries it up toward Om Nom and it flies on through the stars into him. Cut the right one first and the candy waits for the "
+         "spider; cut both at once and it drops far from him.",
+         candies=[(200, 280)], ropes=[rope(60, 140, spider=0.0), rope(300, 120)], om_nom=(361, 423),
+         stars=[(280, 308), (345, 304), (372, 320)]),
     make("b2_l19", "Swing over the spikes",
          "Puff the candy into a bigger swing than its rope alone would give, and cut it at the top: it clears the "
          "spikes and lands in Om Nom.",
@@ -427,7 +464,7 @@ BOX3: list[Level] = [
     make("b3_l02", "Sparks",
          "An electric barrier sparks on and off between the candy and Om Nom. Cut so that the candy passes it while "
          "it is off.",
-         candies=[(240, 160)], ropes=[rope(240, 60)], electrics=[electric((140, 400), (340, 400), 2.0, 1.2)],
+         candies=[(240, 160)], ropes=[rope(240, 60)], electrics=[electric((140, 400), (340, 400), 3.0, 2.4)],
          om_nom=(240, 620), stars=[(240, 280), (240, 470), (240, 540)]),
     make("b3_l03", "A ramp",
          "Cut the two short ropes and the candy drops into the long rope's swing; let go of it at the top of the "
@@ -451,16 +488,17 @@ BOX3: list[Level] = [
                                        rope(30, 140, slack=100)],
          om_nom=(260, 600), stars=[(165, 270), (190, 360), (215, 440)]),
     make("b3_l06", "Bounce off the wall",
-         "Let go of the swing so that the candy hits the wall and bounces back down into Om Nom, who sits where no "
-         "straight throw reaches.",
-         candies=[(100, 300)], ropes=[rope(100, 180), rope(220, 180, slack=0)], walls=[wall((420, 150), (420, 450))],
-         om_nom=(320, 540), stars=[(200, 360), (350, 330), (360, 450)]),
+         "Om Nom sits where no throw reaches him straight. Cut the three ropes in the right order, quickly: the "
+         "candy is flung right, bounces off the wall and drops through the stars into him. Any other order flings it "
+         "short or wide.",
+         candies=[(200, 240)], ropes=[rope(110, 100), rope(310, 160), rope(160, 60, slack=140)],
+         walls=[wall((410, 200), (410, 560))], om_nom=(363, 569), stars=[(291, 310), (338, 371), (380, 461)]),
     make("b3_l07", "Foil finale",
          "A hook, sparks and a ramp: let go of the moving candy when it will pass the barrier while it is off and "
          "land high on the ramp, which rolls it through the stars to Om Nom.",
          candies=[(100, 200)], ropes=[rope(100, 80, track=track(380, 80, 8.0))],
-         electrics=[electric((130, 320), (360, 320), 2.0, 1.0)], walls=[wall((130, 450), (380, 540))],
-         om_nom=(440, 590), stars=[(180, 390), (260, 450), (350, 490)]),
+         electrics=[electric((130, 320), (440, 320), 2.0, 1.4, 1.4)], walls=[wall((250, 480), (390, 540))],
+         om_nom=(440, 590), stars=[(251, 283), (290, 410), (376, 481)]),
 ]
 
 # -- box 4: Magic -----------------------------------------------------------------------------------
@@ -478,73 +516,76 @@ BOX4: list[Level] = [
          candies=[(100, 160)], ropes=[rope(100, 60)], hats=[hats((100, 420), 90, (360, 200), 270)], om_nom=(360, 600),
          stars=[(100, 300), (360, 330), (360, 460)]),
     make("b4_l02", "Out sideways",
-         "Drop the candy straight into the hat, both ropes in one swipe (either alone swings it off the line): the "
-         "second hat faces sideways and shoots it across, as fast as it fell, to Om Nom.",
-         candies=[(80, 150)], ropes=[rope(20, 60), rope(140, 60)], hats=[hats((80, 560), 90, (160, 300), 0)],
-         om_nom=(450, 335),
-         stars=[(80, 300), (300, 305), (390, 322)]),
+         "The hat is not under the candy. Cut the left rope and let the right one swing the candy out; let go when "
+         "its flight ends in the hat: the second hat faces sideways and shoots it across, as fast as it fell, to Om "
+         "Nom. Both ropes at once drop it past the hat.",
+         candies=[(110, 200)], ropes=[rope(50, 100), rope(170, 110)], hats=[hats((240, 520), 90, (180, 320), 0)],
+         om_nom=(392, 339), stars=[(225, 285), (226, 432), (238, 320)]),
     make("b4_l03", "As fast as it went in",
          "The exit hat points up at Om Nom, high above it. The candy leaves as fast as it entered: let the bubble "
          "take it high before you pop it, so that it falls fast enough.",
          candies=[(100, 560)], bubbles=[{"pos": (100, 560)}], ropes=[rope(100, 660)],
          hats=[hats((100, 640), 90, (360, 620), 90)], om_nom=(360, 90), stars=[(100, 330), (100, 200), (360, 330)]),
     make("b4_l04", "Two pairs",
-         "Two pairs of hats, told apart by their colours. Drop the candy straight into the first (both ropes in one "
-         "swipe): it throws the candy into the second, and the second to Om Nom.",
-         candies=[(240, 120)], ropes=[rope(160, 40), rope(320, 40)],
-         hats=[hats((240, 330), 90, (80, 200), 0), hats((360, 300), 180, (260, 450), 270)],
-         om_nom=(260, 620), stars=[(240, 230), (300, 255), (260, 530)]),
-    make("b4_l05", "Up into the hat",
-         "A bubble carries the candy up into a hat that opens downward; its pair lets the bubble out sideways. Pop "
-         "it then, over Om Nom.",
-         candies=[(120, 520)], ropes=[rope(120, 400)], bubbles=[{"pos": (120, 600)}],
-         hats=[hats((120, 180), 270, (340, 160), 0)], om_nom=(440, 620), stars=[(120, 350), (120, 250), (440, 400)]),
+         "Two pairs of hats, told apart by their colours. Cut the left rope and let the right one swing the candy "
+         "over; let go when its fall ends in the first hat: its pair throws the candy up into the second pair's "
+         "hat, and that one drops it to Om Nom, under the spikes. Both ropes at once drop it straight, past the hats.",
+         candies=[(240, 120)], ropes=[rope(150, 20), rope(300, 40)],
+         hats=[hats((340, 380), 90, (420, 300), 180), hats((340, 243), 90, (420, 570), 270)],
+         spikes=[spikes((330, 525), (470, 525))], om_nom=(420, 670), stars=[(390, 277), (340, 320), (340, 185)]),
+    make("b4_l05", "Fling it into the hat",
+         "Three ropes, one of them slack. Cut them one after the other, without a pause, in the right order, and the "
+         "candy is flung down into the hat; its pair drops it through the stars into Om Nom. Any other order flings "
+         "it past the hat.",
+         candies=[(200, 200)], ropes=[rope(60, 120), rope(340, 90), rope(200, 220, slack=100)],
+         hats=[hats((384, 445), 111, (420, 200), 270)], om_nom=(420, 560), stars=[(335, 340), (420, 276), (420, 379)]),
     make("b4_l06", "Puff into the hat",
-         "The candy swings; puff it at the bottom of the swing so that it flies into the hat; its pair drops it to Om "
-         "Nom. Cut loose and puffed, the candy falls on the spikes.",
-         candies=[(120, 300)], ropes=[rope(120, 150)], cushions=[cushion(30, 300, 0)],
-         hats=[hats((360, 330), 180, (240, 120), 270)], spikes=[spikes((100, 440), (205, 440))], om_nom=(240, 620),
-         stars=[(230, 300), (320, 320), (240, 400)]),
+         "Cut the left rope and the candy swings on the right one, too low for the hat. Puff it as it swings through "
+         "the cushion's band, three puffs, and it flies up into the hat; its pair drops it to Om Nom. Five puffs throw "
+         "it past the hat; cut loose, it falls short.",
+         candies=[(120, 260)], ropes=[rope(40, 170), rope(210, 160)], cushions=[cushion(30, 315, 0)],
+         hats=[hats((330, 225), 64, (380, 360), 270)], om_nom=(380, 624),
+         stars=[(275, 282), (345, 150), (380, 500)]),
     make("b4_l07", "Around the spikes",
-         "Spikes roof Om Nom over; the hat's pair opens under them. Drop the candy straight into the hat: cut both "
-         "ropes in one swipe, or the other one swings the candy away.",
-         candies=[(80, 150)], ropes=[rope(20, 50), rope(160, 70)], hats=[hats((80, 500), 90, (360, 470), 270)],
-         spikes=[spikes((280, 430), (440, 430))], om_nom=(370, 620),
-         stars=[(80, 300), (80, 420), (370, 540)]),
+         "Spikes roof Om Nom over; the hat's pair opens under them. The hat is not under the candy: cut the left rope, "
+         "let the right one swing the candy out, and let go at the far end of the swing, over the hat. Both ropes at "
+         "once drop it beside the hat.",
+         candies=[(110, 140)], ropes=[rope(30, 40), rope(170, 20)], hats=[hats((222, 434), 90, (360, 470), 270)],
+         spikes=[spikes((280, 430), (440, 430))], om_nom=(360, 620), stars=[(222, 215), (223, 354), (360, 541)]),
     make("b4_l08", "Sling into the hat",
-         "Cut the lower rope: the red rope slings the candy past its pin, catches it and swings it back down into the "
-         "hat, which takes the rope off; the pair drops the candy into Om Nom. Let go of the red rope in flight and "
-         "the candy flies off the right edge.",
-         candies=[(100, 600)], ropes=[rope(20, 680, balance=True), rope(200, 460, stretch=30)],
-         hats=[hats((214, 604), 0, (70, 90), 270)], om_nom=(70, 420), stars=[(180, 500), (70, 200), (70, 300)]),
+         "Cut the lower rope: the red rope slings the candy up past its pin and swings it back; let go of it at the "
+         "end of the swing, right over the hat, and the candy drops in; the pair drops it from the top of the screen "
+         "into Om Nom. Hold on and it swings over the hat; let go in the throw and it flies off.",
+         candies=[(130, 560)], ropes=[rope(50, 640, balance=True), rope(200, 460, stretch=45)],
+         hats=[hats((170, 621), 90, (100, 80), 270)], om_nom=(100, 420), stars=[(180, 548), (100, 146), (100, 280)]),
     make("b4_l09", "Out of the hat, into a rope",
          "The candy falls into the hat and shoots out of its pair sideways; the automatic rope catches it in flight "
-         "and swings it round, down into Om Nom. Take the automatic rope away and the candy flies off.",
-         candies=[(80, 120)], ropes=[rope(80, 30)], hats=[hats((80, 420), 90, (200, 150), 0)],
-         active_pins=[{"pos": (380, 230), "radius": 90}], om_nom=(370, 350), stars=[(80, 300), (300, 170), (440, 250)]),
+         "and swings it round. Let go as the swing throws it back left, and it flies into Om Nom; hold on and it "
+         "swings past him.",
+         candies=[(80, 120)], ropes=[rope(80, 30)], hats=[hats((80, 420), 90, (160, 180), 0)],
+         active_pins=[{"pos": (380, 230), "radius": 100}], om_nom=(204, 304), stars=[(238, 180), (340, 193), (406, 321)]),
     make("b4_l10", "The spider and the hat",
          "A spider comes down the left of the two short ropes. Cut both short ropes in one swipe before it arrives: "
-         "the candy drops, the long slack rope catches it and swings it through the stars into the hat, and the pair "
-         "drops it on Om Nom. Cut the spider's rope alone and the other short rope keeps the candy; let that one go "
-         "later and the candy reaches the hat off the stars' line, or misses it.",
-         candies=[(140, 200)], ropes=[rope(140, 100, spider=0.0), rope(400, 160, slack=0), rope(260, 80)],
-         hats=[hats((340, 400), 180, (60, 380), 270)], om_nom=(60, 640), stars=[(200, 300), (250, 335), (60, 500)]),
+         "the long rope swings the candy out to the right; let go of it at the far end of the swing, over the hat, "
+         "and the pair drops the candy on Om Nom. Cut everything at once and it falls far from the hat.",
+         candies=[(160, 240)], ropes=[rope(160, 140, spider=0.0), rope(280, 120, slack=0), rope(240, 140)],
+         hats=[hats((383, 346), 90, (60, 360), 270)], om_nom=(60, 640), stars=[(273, 291), (383, 256), (60, 480)]),
     make("b4_l11", "Through the hat, past the sparks",
          "The pair of the hat opens above an electric barrier. Drop the candy when it will come out while the "
          "barrier is off.",
          candies=[(100, 140)], ropes=[rope(100, 40)], hats=[hats((100, 420), 90, (340, 120), 270)],
-         electrics=[electric((260, 330), (440, 330), 1.6, 0.9, 0.6)], om_nom=(340, 620), stars=[(100, 300), (340, 250), (340, 450)]),
+         electrics=[electric((260, 330), (440, 330), 3.0, 2.4)], om_nom=(340, 620), stars=[(100, 300), (340, 250), (340, 450)]),
     make("b4_l12", "Drop from the hook",
-         "The hook carries the candy across; drop it when it is over the hat, and the pair sends it down to Om Nom.",
-         candies=[(80, 200)], ropes=[rope(80, 80, track=track(400, 80, 8.0))], hats=[hats((300, 450), 90, (420, 380), 270)],
-         om_nom=(420, 640), stars=[(200, 210), (300, 350), (420, 520)]),
+         "The hook carries the candy across; spikes roof Om Nom over, and the hat's pair opens under them. Drop the "
+         "candy when its fall ends in the hat: a moment early or late and it misses.",
+         candies=[(80, 200)], ropes=[rope(80, 80, track=track(400, 80, 8.0))], hats=[hats((200, 300), 90, (400, 480), 270)],
+         spikes=[spikes((300, 430), (470, 430))], om_nom=(400, 660), stars=[(150, 205), (200, 240), (400, 590)]),
     make("b4_l13", "Roll into the hat",
-         "Drop the candy on the ramp, both ropes in one swipe: it rolls down into the hat at its foot, and the other "
-         "hat throws it down to Om Nom. Cut one rope alone and the other swings the candy into the spikes or off "
-         "the ramp.",
-         candies=[(170, 180)], ropes=[rope(90, 90), rope(250, 90)], walls=[wall((150, 345), (330, 420))],
-         spikes=[spikes((235, 190), (235, 300))],
-         hats=[hats((380, 420), 180, (100, 470), 300)], om_nom=(210, 640), stars=[(170, 260), (260, 360), (150, 560)]),
+         "The ramp is off to the right. Cut the left rope, let the right one swing the candy out, and let go at the "
+         "far end of the swing: it drops on the ramp, rolls down into the hat at its foot, and the other hat throws "
+         "it down to Om Nom. Both ropes at once drop it past the ramp.",
+         candies=[(170, 180)], ropes=[rope(90, 90), rope(250, 90)], walls=[wall((380, 300), (250, 380))],
+         hats=[hats((215, 395), 0, (400, 470), 270)], om_nom=(400, 640), stars=[(330, 200), (300, 330), (400, 560)]),
     make("b4_l14", "Puff the bubble under the hat",
          "The bubble rises beside the hat; puff it over so that it rises into the hat, and pop it when its pair lets "
          "it out over Om Nom.",
@@ -588,11 +629,11 @@ BOX5: list[Level] = [
          ropes=[rope(140, 330, candy=0), rope(320, 300, candy=0), rope(250, 90, candy=1)],
          om_nom=(240, 640), stars=[(250, 300), (240, 490), (215, 560)]),
     make("b5_l04", "A half in a bubble",
-         "Drop the lower half into the bubble: it rises to the upper half and they join, floating on the upper "
-         "half's rope. Pop the bubble, then cut the rope, and the whole candy falls to Om Nom.",
-         candies=[(220, 460), (250, 260)], bubbles=[{"pos": (220, 540)}],
-         ropes=[rope(220, 350, candy=0), rope(250, 160, candy=1)], om_nom=(250, 640),
-         stars=[(200, 400), (250, 110), (250, 480)]),
+         "Drop the left half into the bubble and puff the rising bubble over to the right half: they join, floating "
+         "on the right half's rope. Pop the bubble, then cut the rope, and the whole candy falls to Om Nom.",
+         candies=[(140, 460), (320, 300)], bubbles=[{"pos": (140, 540)}],
+         ropes=[rope(140, 350, candy=0), rope(320, 200, candy=1)], cushions=[cushion(20, 320, 0)],
+         om_nom=(320, 640), stars=[(140, 400), (230, 320), (320, 480)]),
     make("b5_l05", "Puff the halves together",
          "Puff the right half three times: it swings up round its pin until it hangs over the left half. Let it go "
          "there and it drops onto the left half: they join on the left rope; cut that and the whole candy falls to "

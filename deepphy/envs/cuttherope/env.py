@@ -9,13 +9,22 @@ then runs on for up to RUN_ON_CAP seconds to decide (undecided after success(): 
 claim, scored as a loss; undecided after the 10th action: truncated). fail() stops acting
 too: the world runs on and the game decides (a candy already on its way still wins).
 Stars = stars the candy touched, when the level is won (0 otherwise).
+
+What the model is told (the DeepPHY paper's information, ../shared/notes/paper-prompts.md
+section 6): by default the screenshot with its labels, per element type how many there are
+and their ids, the actions taken so far, what can be used now, and feedback in words; no
+numbers about the world (no positions, speeds, rope lengths, distances, clock or timings).
+The environment option `state_text` (an ablation) adds the numeric state: every element's
+position and state, the ropes' rest lengths and pull, the candy's velocity, the clock, the
+hooks' and barriers' timings, and the times of events in the feedback.
 """
 
 from __future__ import annotations
 
 import math
 
-from deepphy.envs.base import FILM_FPS, Action, Environment, Frame, Observation, ObservationCache, StepResult, Task
+from deepphy.envs.base import (FILM_FPS, Action, EnvOptions, Environment, Frame, Observation, ObservationCache,
+                               StepResult, Task)
 from deepphy.envs.cuttherope import SPEC
 from deepphy.envs.cuttherope import constants as C
 from deepphy.envs.cuttherope.level import BOX_THEMES, Level, level_ids, load_level
@@ -28,13 +37,21 @@ from deepphy.envs.images import Image
 INITIAL = ObservationCache()
 
 
+class CutTheRopeOptions(EnvOptions):
+    """Cut the Rope's options: the shared ones only. `state_text` here adds every element's
+    position, rope lengths, speeds and the world's clock (see the module's docstring)."""
+
+
 class Attempt:
     """One attempt's rules, without pictures: the world, the actions taken, the cushions
-    tapped. The environment plays through it; so does the calibration's reference baseline."""
+    tapped. The environment plays through it; so does the calibration's reference baseline.
+    `clock`: the feedback gives the world's time of each event (the state_text option)."""
 
-    def __init__(self, level: Level) -> None:
+    def __init__(self, level: Level, clock: bool = False) -> None:
         self.world = World.from_level(level)
+        self.clock = clock
         self.actions = 0
+        self.history: list[str] = []  # the actions taken, in the syntax
         self.tapped: list[int] = []
         self.done = False
         self.truncated = False
@@ -56,23 +73,27 @@ class Attempt:
         self.actions += 1
         if action.name == "tap_air_cushion" and action.ids[0] not in self.tapped:
             self.tapped.append(action.ids[0])
+        self.history.append(format_action(action))
         words = act(world, action)
-        feedback = [f"{format_action(action)}: {words}", *_event_words(world)]
+        feedback = [f"{format_action(action)}: {words}", *_event_words(world, self.clock)]
         if not world.decided and self.actions >= C.MAX_ACTIONS:
             feedback.append(f"that was the last of {C.MAX_ACTIONS} actions: the world runs on "
                             f"(at most {C.RUN_ON_CAP:g} s) to decide the outcome")
             world.run_on(seconds_to_steps(C.RUN_ON_CAP))
-            feedback += _event_words(world)
+            feedback += _event_words(world, self.clock)
             self.truncated = not world.decided
         self.done = world.decided or self.truncated
+        when = f" at t = {world.time:.2f} s" if self.clock else ""
         if world.decided:
             won = world.status == "won"
-            feedback.append(f"LEVEL {'WON' if won else 'LOST'} at t = {world.time:.2f} s: {world.reason}"
+            feedback.append(f"LEVEL {'WON' if won else 'LOST'}{when}: {world.reason}"
                             + (f", with {world.stars_collected} of {len(world.level.stars)} stars" if won else ""))
         elif self.truncated:
             feedback.append(f"undecided after {C.RUN_ON_CAP:g} s more: the attempt ends unsolved")
-        else:
+        elif self.clock:
             feedback.append(f"t = {world.time:.2f} s, stars {world.stars_collected}/{len(world.level.stars)}")
+        else:
+            feedback.append(f"stars {world.stars_collected}/{len(world.level.stars)}; the world is paused")
         return feedback
 
     @property
@@ -83,10 +104,15 @@ class Attempt:
 
 class CutTheRopeEnv(Environment):
     spec = SPEC
+    Options = CutTheRopeOptions
 
-    def __init__(self, options=None) -> None:
+    def __init__(self, options: CutTheRopeOptions | None = None) -> None:
         super().__init__(options)
         self.attempt: Attempt | None = None
+
+    @property
+    def state_text(self) -> bool:
+        return self.options.state_text  # type: ignore[attr-defined]
 
     @property
     def world(self) -> World | None:
@@ -94,21 +120,23 @@ class CutTheRopeEnv(Environment):
 
     @classmethod
     def tasks(cls, options) -> list[Task]:
-        return [Task(env=SPEC.name, id=i, group=i.split("_")[0], params={"level": i}) for i in level_ids()]
+        return [Task(env=SPEC.name, id=i, group=i.split("_")[0], params={"level": i, "state_text": options.state_text})
+                for i in level_ids()]
 
     # -- the contract ------------------------------------------------------------------------
 
     def reset(self, task: Task) -> Observation:
         level = load_level(task.params.get("level", task.id))
-        known = INITIAL.get(task.id)
+        key = (task.id, self.state_text)
+        known = INITIAL.get(key)
         if known is not None:  # every attempt starts from the same scene: render it once
             self.start(level, observe=False)
             return known
-        return INITIAL.put(task.id, self.start(level))
+        return INITIAL.put(key, self.start(level))
 
     def start(self, level: Level, observe: bool = True) -> Observation | None:
         """Start an attempt of `level` (a level given as data, e.g. one being designed)."""
-        self.attempt = Attempt(level)
+        self.attempt = Attempt(level, clock=self.state_text)
         return self.observation() if observe else None
 
     def step(self, action: Action) -> StepResult:
@@ -128,11 +156,12 @@ class CutTheRopeEnv(Environment):
             banner = f"WON: {world.stars_collected} star(s)" if won else f"LOST: {world.reason}"
         elif attempt.truncated:
             banner = "not decided: out of actions"
+        when = f", t = {world.time:.2f} s" if self.state_text else ""
         frame = Image.from_array(
             f"a{attempt.actions}",
-            f"the level after action {attempt.actions} ({format_action(action)}), t = {world.time:.2f} s; "
+            f"the level after action {attempt.actions} ({format_action(action)}){when}; "
             "magenta dots trace the candy's path",
-            render(world, trail=True, banner=banner[:60] if banner else None),
+            render(world, trail=True, banner=banner[:60] if banner else None, clock=self.state_text),
         )
         return StepResult(
             terminated=world.decided,
@@ -172,13 +201,16 @@ class CutTheRopeEnv(Environment):
 
     def observation(self) -> Observation:
         world = self.world
+        now = f"at t = {world.time:.2f} s" if self.state_text else "now (the world is paused)"
         image = Image.from_array(
             "scene",
-            f"The level at t = {world.time:.2f} s. Yellow labels name what actions can use (P pins, A active pins, "
+            f"The level {now}. Yellow labels name what actions can use (P pins, A active pins, "
             "B bubbles, C air cushions); white labels name magic hats (H) and electric barriers (E).",
-            render(world),
+            render(world, clock=self.state_text),
         )
-        return Observation(images=[image], text=describe(world, self.attempt.actions), action_space=self.space())
+        text = (describe_state(world, self.attempt.actions) if self.state_text
+                else describe(world, self.attempt.history))
+        return Observation(images=[image], text=text, action_space=self.space())
 
     def _info(self) -> dict:
         w = self.world
@@ -222,24 +254,33 @@ def act(world: World, action: CutAction) -> str:
         return f"you {said}: the world runs on (at most {C.RUN_ON_CAP:g} s) and the game decides"
     if action.name == "sleep":
         words = f"the world runs for {action.seconds:g} s"
-    elif action.name == "cut_pin":
-        words = "; ".join(world.cut_pin(i) for i in action.ids)
-    elif action.name == "cut_active_pin":
-        words = "; ".join(world.cut_active_pin(i) for i in action.ids)
-    elif action.name == "pop_bubble":
-        words = world.pop_bubble(action.ids[0])
     else:
-        words = world.tap_air_cushion(action.ids[0], action.times)
+        words = apply(world, action)
     world.advance(seconds_to_steps(action.seconds if action.name == "sleep" else C.ACTION_INTERVAL))
     return words
+
+
+def apply(world: World, action: CutAction) -> str:
+    """What an element action does at the moment it is taken (the world does not run)."""
+    if action.name == "cut_pin":
+        return "; ".join(world.cut_pin(i) for i in action.ids)
+    if action.name == "cut_active_pin":
+        return "; ".join(world.cut_active_pin(i) for i in action.ids)
+    if action.name == "pop_bubble":
+        return world.pop_bubble(action.ids[0])
+    assert action.name == "tap_air_cushion", action
+    return world.tap_air_cushion(action.ids[0], action.times)
 
 
 def format_action(action: CutAction) -> str:
     return CutSpace().format(action)
 
 
-def _event_words(world: World) -> list[str]:
-    return [f"at t = {e.step / C.STEPS_PER_SECOND:.2f} s {e.text}" for e in world.events]
+def _event_words(world: World, clock: bool) -> list[str]:
+    """What happened while the world ran: with `clock`, each event's time; without, in order."""
+    if clock:
+        return [f"at t = {e.step / C.STEPS_PER_SECOND:.2f} s {e.text}" for e in world.events]
+    return [f"then {e.text}" for e in world.events]
 
 
 def compass(angle: float) -> str:
@@ -251,8 +292,60 @@ def _xy(p) -> str:
     return f"({int(round(p[0]))}, {int(round(p[1]))})"
 
 
-def describe(world: World, actions_taken: int) -> str:
-    """The text state that goes with the screenshot."""
+def describe(world: World, history: list[str]) -> str:
+    """The text that goes with the screenshot (the paper's information): the level and its
+    box, the decision's number, per element type how many there are and their ids, the
+    actions taken so far, what can be used now. Nothing the picture shows in numbers."""
+    level: Level = world.level
+    lines = [f"Level {level.id} (box {level.box}: {BOX_THEMES[level.box]}). "
+             f"Decision {len(history) + 1} of at most {C.MAX_ACTIONS}; the world is paused."]
+    kinds = []
+    for noun, letter, count in (("pins", "P", len(level.pins)), ("active pins", "A", len(level.active_pins)),
+                                ("bubbles", "B", len(level.bubbles)), ("air cushions", "C", len(level.cushions))):
+        if count:
+            kinds.append(f"{count} {noun if count > 1 else noun[:-1]} ({', '.join(f'{letter}{k}' for k in range(1, count + 1))})")
+    lines.append("Elements you can act on: " + ("; ".join(kinds) if kinds else "none") + ".")
+    other = []
+    hooks = [f"P{k}" for k, p in enumerate(level.pins, 1) if p.track]
+    if hooks:
+        other.append(f"{len(hooks)} of the pins {'is a hook' if len(hooks) == 1 else 'are hooks'} on a track "
+                     f"({', '.join(hooks)})")
+    spiders = [f"P{s.pin}" for s in world.spiders if not s.gone]
+    if spiders:
+        other.append(f"{len(spiders)} spider{'s' if len(spiders) > 1 else ''} (on the rope of {', '.join(spiders)})")
+    if level.hats:
+        other.append(f"{len(level.hats)} pair{'s' if len(level.hats) > 1 else ''} of magic hats "
+                     f"({', '.join(f'H{k}' for k in range(1, len(level.hats) + 1))})")
+    if level.electrics:
+        other.append(f"{len(level.electrics)} electric barrier{'s' if len(level.electrics) > 1 else ''} "
+                     f"({', '.join(f'E{k}' for k in range(1, len(level.electrics) + 1))})")
+    if level.spikes:
+        other.append(f"{len(level.spikes)} row{'s' if len(level.spikes) > 1 else ''} of spikes")
+    if level.walls:
+        other.append(f"{len(level.walls)} wall{'s' if len(level.walls) > 1 else ''}")
+    if level.halves:
+        other.append("two candy halves to join" if not any(c.alive and not c.half for c in world.candies)
+                     else "the halves have joined into one candy")
+    if other:
+        lines.append("Also in the level: " + "; ".join(other) + ".")
+    lines.append(f"Stars collected: {world.stars_collected} of {len(level.stars)}.")
+    lines.append("Your actions so far: " + ("; ".join(history) if history else "none") + ".")
+    lines.append(_menu(world))
+    return "\n".join(lines)
+
+
+def _menu(world: World) -> str:
+    avail = world.available()
+    acts = ([f"cut_pin({i})" for i in avail["pins"]] + [f"cut_active_pin({i})" for i in avail["active_pins"]]
+            + [f"pop_bubble({i})" for i in avail["bubbles"]]
+            + [f"tap_air_cushion({i}, times=1|3|5)" for i in avail["cushions"]])
+    return ("You can now: " + ", ".join(acts + [f"sleep({C.SLEEP_MIN:g}..{C.SLEEP_MAX:g})", "success()", "fail()"])
+            + ".")
+
+
+def describe_state(world: World, actions_taken: int) -> str:
+    """The text state with the numbers (the state_text option): every element's position
+    and state, the candy's velocity, the ropes' rest lengths and pull, the clock."""
     level: Level = world.level
     lines = [f"Level {level.id} (box {level.box}: {BOX_THEMES[level.box]}). Time t = {world.time:.2f} s. "
              f"Action {actions_taken + 1} of at most {C.MAX_ACTIONS}."]
@@ -341,10 +434,5 @@ def describe(world: World, actions_taken: int) -> str:
                          + (f" (starts in {s.delay - world.time:.2f} s)" if waiting else
                             f" (reaches it in {left:.1f} s unless that rope is cut)"))
         lines.append("Spiders: " + "; ".join(parts) + ".")
-    avail = world.available()
-    acts = ([f"cut_pin({i})" for i in avail["pins"]] + [f"cut_active_pin({i})" for i in avail["active_pins"]]
-            + [f"pop_bubble({i})" for i in avail["bubbles"]]
-            + [f"tap_air_cushion({i}, times=1|3|5)" for i in avail["cushions"]])
-    lines.append("You can now: " + ", ".join(acts + [f"sleep({C.SLEEP_MIN:g}..{C.SLEEP_MAX:g})", "success()", "fail()"])
-                 + ".")
+    lines.append(_menu(world))
     return "\n".join(lines)

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from deepphy.envs.cuttherope import constants as C
-from deepphy.envs.cuttherope.env import Attempt, act
+from deepphy.envs.cuttherope.env import Attempt, act, apply
 from deepphy.envs.cuttherope.level import Level
 from deepphy.envs.cuttherope.sim import World, seconds_to_steps
 from deepphy.envs.cuttherope.space import CutAction, CutSpace, format_seconds
@@ -220,63 +220,131 @@ def trajectory(level: Level, actions: list[CutAction]) -> tuple[World, list[tupl
     return world, path, events
 
 
-# -- timing: the sleeps of a plan ---------------------------------------------------------------------
+# -- timing: every action of a plan nudged (the declared nudge set) ------------------------------------
 
-
-def _with_sleeps(texts: list[str], values: list[float]) -> list[str] | None:
-    """`texts` with its sleeps set to `values` (in order); None if one is out of range."""
-    out, k = [], 0
-    for t in texts:
-        action = ANY.parse(t)
-        if action.name == "sleep":
-            v = round(values[k], 2)
-            k += 1
-            if not C.SLEEP_MIN <= v <= C.SLEEP_MAX:
-                return None
-            t = f"sleep({format_seconds(v)})"
-        out.append(t)
-    return out
+NUDGE = 0.1  # s: each element action of a plan alone, this much earlier and later
+ROBUST_SHARE = 0.95  # a stored plan is robust when at least this share of its nudged variants win
+CENTRE_STEP = 5  # physics steps (0.05 s): the grain on which centre_actions moves an action
+CENTRE_REACH = 1.0  # s: how far centre_actions looks for the edges of an action's window
 
 
 def sleeps_of(texts: list[str]) -> list[float]:
     return [a.seconds for a in map(ANY.parse, texts) if a.name == "sleep"]
 
 
-def robustness(level: Level, texts: list[str], shift: float = 0.1) -> dict:
-    """Does the plan still win when its sleeps move by +-shift: each alone, and all
-    together? {"variants", "won", "three_stars", "min_stars"} (a plan without sleeps has none)."""
-    base = sleeps_of(texts)
-    variants = []
-    for d in (-shift, shift) if base else ():
-        variants.append([v + d for v in base])
-        if len(base) > 1:
-            variants += [[v + (d if j == k else 0.0) for j, v in enumerate(base)] for k in range(len(base))]
-    won = three = 0
-    stars = []
-    for values in variants:
-        plan = _with_sleeps(texts, values)
-        ok, s = play(level, plan) if plan else (False, 0)
-        won += ok
-        three += ok and s == 3
-        stars.append(s if ok else 0)
-    return {"variants": len(variants), "won": won, "three_stars": three, "min_stars": min(stars, default=3)}
+def timed(texts: list[str]) -> list[tuple[int, CutAction]]:
+    """A plan as its element actions and the world's step at which each is taken (a sleep
+    runs its seconds, any other action ACTION_INTERVAL); success() and fail() end it."""
+    out, step = [], 0
+    for text in texts:
+        action = ANY.parse(text)
+        if action.name in ("success", "fail"):
+            break
+        if action.name == "sleep":
+            step += seconds_to_steps(action.seconds)
+        else:
+            out.append((step, action))
+            step += seconds_to_steps(C.ACTION_INTERVAL)
+    return out
 
 
-def centre_sleeps(level: Level, texts: list[str], step: float = 0.05, reach: float = 1.0) -> list[str]:
-    """The plan with each sleep moved to the middle of the window of values (in `step`s,
-    within `reach` s) over which the plan still wins with its stars, the others kept."""
-    _, stars = play(level, texts)
-    values = sleeps_of(texts)
+def untimed(schedule: list[tuple[int, CutAction]]) -> list[str] | None:
+    """The plan (its text, ending with success()) that takes each action at its step; None
+    when the steps cannot be written (a gap shorter than ACTION_INTERVAL, or one that a sleep
+    cannot fill: shorter than SLEEP_MIN or longer than SLEEP_MAX)."""
+    out, now = [], 0
+    interval = seconds_to_steps(C.ACTION_INTERVAL)
+    for step, action in schedule:
+        gap = (step - now) / C.STEPS_PER_SECOND
+        if gap < 0:
+            return None
+        if gap > 0:
+            if not C.SLEEP_MIN <= round(gap, 2) <= C.SLEEP_MAX:
+                return None
+            out.append(f"sleep({format_seconds(round(gap, 2))})")
+        out.append(ANY.format(action))
+        now = step + interval
+    return out + ["success()"]
+
+
+def play_timed(level: Level, schedule: list[tuple[int, CutAction]]) -> tuple[bool, int]:
+    """(won, stars) when each action is taken at its step (in order), the world then running
+    on as after the plan's last action (ACTION_INTERVAL, then at most RUN_ON_CAP)."""
+    from deepphy.envs.cuttherope.env import invalid_reason
+
+    world = World.from_level(level)
+    for step, action in schedule:
+        world.advance(step - world.step_count)
+        if world.decided:
+            break
+        if invalid_reason(world, action) is not None:
+            return False, 0
+        apply(world, action)
+    world.run_on(seconds_to_steps(C.ACTION_INTERVAL + C.RUN_ON_CAP))
+    won = world.status == "won"
+    return won, world.stars_collected if won else 0
+
+
+def nudged(level: Level, texts: list[str], shift: float = NUDGE) -> dict:
+    """The declared nudge set: each element action of the plan alone taken `shift` s earlier
+    and later on the world's clock, the others where they were (an action that would come
+    before t = 0 is left out; the unnudged plan does not count). {"variants", "won",
+    "three_stars", "share" (of variants won; 1 when there are none), "weakest": the action
+    whose nudges win least, with its share}."""
+    schedule = timed(texts)
+    d = seconds_to_steps(shift)
+    won = three = variants = 0
+    per_action = []
+    for k, (step, action) in enumerate(schedule):
+        wins = tries = 0
+        for delta in (-d, d):
+            if step + delta < 0:
+                continue
+            ok, stars = play_timed(level, schedule[:k] + [(step + delta, action)] + schedule[k + 1:])
+            tries += 1
+            wins += ok
+            three += ok and stars == 3
+        variants += tries
+        won += wins
+        if tries:
+            per_action.append((wins / tries, ANY.format(action)))
+    weakest = min(per_action, default=(1.0, None))
+    return {"variants": variants, "won": won, "three_stars": three, "share": won / variants if variants else 1.0,
+            "weakest": {"action": weakest[1], "share": weakest[0]}}
+
+
+def robust(level: Level, texts: list[str]) -> bool:
+    return nudged(level, texts)["share"] >= ROBUST_SHARE
+
+
+def centre_actions(level: Level, texts: list[str]) -> list[str]:
+    """The plan with each action moved (the others kept where they are on the world's clock)
+    to the middle of its window: the times, on a CENTRE_STEP grain within CENTRE_REACH, at
+    which the plan still wins with its stars (the writable one nearest the middle). An
+    action at t = 0 stays there."""
+    goal = play(level, texts)
+    schedule = timed(texts)
+    reach = seconds_to_steps(CENTRE_REACH)
     for _ in range(2):
-        for k in range(len(values)):
-            def wins(v: float) -> bool:
-                plan = _with_sleeps(texts, values[:k] + [v] + values[k + 1:])
-                return plan is not None and play(level, plan) == (True, stars)
+        for k, (step, action) in enumerate(schedule):
+            if step == 0:
+                continue  # an action at once stays at once (it has no earlier)
 
-            lo = hi = values[k]
-            while hi + step <= values[k] + reach and wins(hi + step):
-                hi += step
-            while lo - step >= values[k] - reach and wins(lo - step):
-                lo -= step
-            values[k] = round((lo + hi) / 2 / step) * step
-    return _with_sleeps(texts, values)
+            def moved(at: int) -> list[tuple[int, CutAction]]:
+                return schedule[:k] + [(at, action)] + schedule[k + 1:]
+
+            def wins(at: int) -> bool:
+                return play_timed(level, moved(at)) == goal
+
+            lo = hi = step
+            while hi + CENTRE_STEP <= step + reach and wins(hi + CENTRE_STEP):
+                hi += CENTRE_STEP
+            while lo - CENTRE_STEP >= max(0, step - reach) and wins(lo - CENTRE_STEP):
+                lo -= CENTRE_STEP
+            # the writable time nearest the middle of the window (a gap after an action is
+            # ACTION_INTERVAL or a sleep of at least SLEEP_MIN)
+            writable = [at for at in range(lo, hi + 1, CENTRE_STEP) if untimed(moved(at)) is not None]
+            if writable:
+                schedule[k] = (min(writable, key=lambda at: (abs(2 * at - lo - hi), at)), action)
+    plan = untimed(schedule)
+    return plan if plan is not None and play(level, plan) == goal else texts

@@ -59,9 +59,11 @@ YELLOW, WHITE, BLACK = (255, 255, 0), (255, 255, 255), (0, 0, 0)
 LABEL_SCALE = 0.5
 
 
-def render(world: World, *, labels: bool = True, trail: bool = False, banner: str | None = None) -> np.ndarray:
+def render(world: World, *, labels: bool = True, trail: bool = False, banner: str | None = None,
+           clock: bool = False) -> np.ndarray:
     """The world as an RGB image. `trail` draws the candy's path during the last advance;
-    `banner` writes a line across the top (the outcome, in key frames)."""
+    `banner` writes a line across the top (the outcome, in key frames); the corner shows the
+    stars collected, and with `clock` the world's time (the state_text option)."""
     img = np.full((C.HEIGHT, C.WIDTH, 3), BACKGROUND, np.uint8)
     cv2.rectangle(img, (0, 0), (C.WIDTH - 1, C.HEIGHT - 1), BORDER, 2)
     level = world.level
@@ -135,7 +137,7 @@ def render(world: World, *, labels: bool = True, trail: bool = False, banner: st
     if labels:
         for text, anchor, radius, actionable in todo:
             _place_label(img, text, anchor, radius, YELLOW if actionable else WHITE, taken)
-    status = f"t = {world.time:.2f} s   stars {world.stars_collected}/{len(level.stars)}"
+    status = (f"t = {world.time:.2f} s   " if clock else "") + f"stars {world.stars_collected}/{len(level.stars)}"
     cv2.putText(img, status, (8, C.HEIGHT - 10), FONT, 0.45, (90, 70, 40), 1, cv2.LINE_AA)
     if banner:
         draw_label(img, banner, (C.WIDTH / 2, 16), scale=0.5, background=WHITE)

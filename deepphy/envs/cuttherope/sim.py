@@ -15,7 +15,8 @@ Dynamics (constants.py has every number):
   beyond it, so it swings the candy, gives and bounces back when jerked taut, and a rope that
   starts stretched contracts and throws the candy. Its pull is set as the body's force
   before each step, computed where pymunk will have moved the body (pymunk moves bodies
-  before it updates velocities): symplectic Euler, which keeps a swing's energy. Ropes pass
+  before it updates velocities): symplectic Euler, which keeps a swing's energy but for a
+  drag (ROPE_DRAG) while a rope pulls, so that swings die down as in the game. Ropes pass
   through everything (as in the web game); cutting one removes it, so the candy flies on
   with the swing's velocity. A hook on a track moves its rope's pin;
 - a bubble that captures the candy replaces gravity by a lift with drag (velocity relaxes
@@ -409,7 +410,9 @@ class World:
                 f[0] -= tension * ux
                 f[1] -= tension * uy
         for i, (fx, fy) in forces.items():
-            bodies[i].force = (fx, fy)
+            c = self.candies[i]
+            drag = C.ROPE_DRAG * c.mass  # the swing dies down (once per candy, however many ropes pull)
+            bodies[i].force = (fx - drag * c.vx, fy - drag * c.vy)
 
     def _set_buoyancy(self, bodies: dict[int, pymunk.Body]) -> None:
         carried = {b.candy for b in self.bubbles if b.candy is not None and not b.popped}
