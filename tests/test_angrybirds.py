@@ -651,26 +651,29 @@ def test_feedback_never_contradicts_itself(env):
     assert seen < 12
 
 
-def test_prompt_gives_the_reference_information_and_ballistics_only_with_physics_hints():
+def test_prompt_gives_the_papers_information_numbers_only_with_state_text_and_ballistics_only_with_hints():
     from deepphy.envs.angrybirds.env import AngryBirdsEnv
     from deepphy.envs.angrybirds.prompt import AngryBirdsPrompt
 
     prompt = AngryBirdsPrompt()
     level = load_level("s2_l07")
     texts = {}
-    for hints in (False, True):
-        env = AngryBirdsEnv(AngryBirdsEnv.Options(physics_hints=hints))
+    for hints, numbers in ((False, False), (True, False), (False, True)):
+        env = AngryBirdsEnv(AngryBirdsEnv.Options(physics_hints=hints, state_text=numbers))
         tasks = {t.id: t for t in AngryBirdsEnv.tasks(env.options)}
         obs = env.reset(tasks["s2_l07"])
-        texts[hints] = (prompt.rules(tasks["s2_l07"], obs), obs.text)
+        texts[hints, numbers] = (prompt.rules(tasks["s2_l07"], obs), obs.text)
         assert SPACE.parse(prompt.example(obs)) == Shoot(angle=30, power=0.85)
-    (plain, plain_obs), (hinted, hinted_obs) = texts[False], texts[True]
-    for text in (plain, hinted):  # both: the syntax, the birds' abilities, the scoring rule
+    (plain, plain_obs), (hinted, hinted_obs), (rich, _) = texts[False, False], texts[True, False], texts[False, True]
+    for text in (plain, hinted, rich):  # all: the syntax, the birds' abilities, the scoring rule
         assert "shoot(angle=A, power=P)" in text and "splits into three" in text and "punches through wood" in text
-        assert f"{C.SCORE_PIG} per pig" in text and f"{C.SCORE_UNUSED_BIRD}" in text and "thresholds" in text
+        assert "per bird left unused" in text or "for every bird left unused" in text
+    numbers = ["960x540 pixels", f"{C.ABILITY_TIME:g} s after launch", f"{C.BLACK_FUSE:g} s after launch",
+               f"{C.SCORE_PIG} per pig", "x damage to wood"]
+    assert not any(n in plain or n in hinted for n in numbers) and all(n in rich for n in numbers)
     ballistics = [f"P x {C.MAX_LAUNCH_SPEED:g} units/s", f"1 unit = {960 / C.WORLD_W:g} pixels",
                   f"gravity is {C.GRAVITY:.3g}", "leaves from pixel"]
-    assert not any(b in plain for b in ballistics) and all(b in hinted for b in ballistics)
+    assert not any(b in plain or b in rich for b in ballistics) and all(b in hinted for b in ballistics)
     assert level.title not in plain_obs and f"Level s2_l07: {level.title}." in hinted_obs
     assert AngryBirdsEnv.Options.model_validate({"physics_hints": "true"}).physics_hints is True
 

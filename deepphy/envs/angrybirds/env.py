@@ -11,11 +11,13 @@ won, SCORE_UNUSED_BIRD per bird not launched. Stars (on the last step): 0 when l
 1, 2 or 3 by the level's thresholds (levels.star_thresholds), which the observation text
 states. Every step carries the score so far; `info` has the shot's details.
 
-Option `physics_hints` (default off, an ablation): the observation names the level's
-title and the prompt adds the ballistics (gravity, launch speed per unit of power, the
-picture's scale and launch pixel) and the abilities' numbers. By default the model gets
-what the reference gave: the picture, the birds in order with their abilities, the action
-syntax and the scoring rule.
+By default the model gets what the paper's prompt gave: the picture, the birds in order
+with their abilities in words, the action syntax, the stars' rule, and the score as the
+game displays it (points and bonuses as they are won). Option `state_text` (the shared one) adds the numbers deepphy gave before
+parity: the picture's size, the abilities' times and damage factors, the score's points.
+Option `physics_hints` (an ablation): the observation names the level's title and the
+prompt adds the ballistics (gravity, launch speed per unit of power, the picture's scale
+and launch pixel).
 """
 
 from __future__ import annotations
@@ -56,7 +58,7 @@ class AngryBirdsEnv(Environment):
             level = load_level(level_id)
             out.append(Task(env=SPEC.name, id=level_id, group=level.group,
                             params={"birds": len(level.birds), "pigs": len(level.pigs),
-                                    "physics_hints": options.physics_hints}))
+                                    "physics_hints": options.physics_hints, "state_text": options.state_text}))
         return out
 
     # -- the contract ---------------------------------------------------------------

@@ -1,10 +1,11 @@
 """Angry Birds prompt: launch the bird in the slingshot; kill every pig with the birds given.
 
-By default it says what the reference prompt said (the picture's legend, the birds and
-their abilities in words, the action syntax, the scoring rule), nothing a model could aim
-with by arithmetic. With the environment option `physics_hints` (an ablation; the task's
-params carry it) it adds the ballistics: gravity, launch speed per unit of power, the
-picture's scale and launch pixel, and the abilities' numbers.
+By default it says what the paper's prompt said (the picture's legend, the birds and their
+abilities in words, the action syntax, how stars are earned), no number a model could aim
+or time with. The environment option `state_text` adds deepphy's richer text from before
+parity (the picture's size in pixels, the abilities' times and damage factors, the score's
+points); `physics_hints` (an ablation) adds the ballistics: gravity, launch speed per unit
+of power, the picture's scale and launch pixel. The task's params carry both.
 """
 
 from deepphy.envs.angrybirds import constants as C
@@ -19,11 +20,23 @@ def _g(x: float) -> str:
 class AngryBirdsPrompt(EnvPrompt):
     def rules(self, task: Task, observation: Observation) -> str:
         w, h = observation.images[0].size
-        factor = C.BIRD_MATERIAL_FACTOR
+        numbers = bool(task.params.get("state_text"))
         hints = self._hints(w, h) if task.params.get("physics_hints") else ""
+        factor = C.BIRD_MATERIAL_FACTOR
+        size = f"{w}x{h} pixels; " if numbers else ""
+        soon = f"{_g(C.ABILITY_TIME)} s after launch" if numbers else "shortly after launch"
+        fuse = f"{_g(C.BLACK_FUSE)} s after launch" if numbers else "a while after launch"
+        wood = f" ({_g(factor['yellow']['wood'])}x damage to wood)" if numbers else ""
+        ice = f" ({_g(factor['blue']['ice'])}x damage to ice)" if numbers else ""
+        stone = (f"; its impact does\n  {_g(factor['black']['stone'])}x damage to stone" if numbers
+                 else "; it is the bird\n  for stone and for chain reactions")
+        score = (f"{C.SCORE_PIG} per pig killed, {C.SCORE_BLOCK} per block destroyed and, when the level is won,\n"
+                 f"{C.SCORE_UNUSED_BIRD} per bird left unused" if numbers else
+                 "points for every pig killed and block destroyed and, when the level is won, a bonus\n"
+                 "for every bird left unused")
         return f"""You are playing Angry Birds, level "{task.id}": launch birds from a slingshot to kill every pig.
 
-The picture is a side view ({w}x{h} pixels; gravity pulls down):
+The picture is a side view ({size}gravity pulls down):
 - the slingshot stands on the left; the bird sitting in it is the one you launch now, and the
   birds waiting on the ground behind it come next, the nearest one first;
 - pigs are green round faces; small, medium and big pigs (bigger ones take more to kill);
@@ -42,18 +55,19 @@ A pig dies when it is hit hard enough: by a bird, by a falling or flying block, 
 of its own, or by an explosion; a pig pushed out of the picture dies too. Blocks break
 the same way. After each shot the scene is simulated until everything is at rest (a spent
 bird disappears once it lies still); then you see it and choose the next shot. The level
-is won as soon as no pig is left, and lost when the birds run out first.
+is won as soon as no pig is left, and lost when the birds run out first. Aim with what
+you see and what earlier shots did: hit the weak points that hold a structure up, and plan
+around the birds' fixed order.
 
 The birds (their abilities act by themselves; you only choose the launch):
-- red: a plain bird.
-- yellow: {_g(C.ABILITY_TIME)} s after launch it dashes forward, much faster along its flight; it
-  punches through wood ({_g(factor['yellow']['wood'])}x damage to wood).
-- blue: {_g(C.ABILITY_TIME)} s after launch it splits into three small birds that fan out slightly;
-  it shatters ice ({_g(factor['blue']['ice'])}x damage to ice).
-- black: a bomb. It explodes at its first impact (or {_g(C.BLACK_FUSE)} s after launch if it has hit
-  nothing by then), damaging and throwing everything near it; its impact does
-  {_g(factor['black']['stone'])}x damage to stone.
-A yellow or blue bird that hits something before {_g(C.ABILITY_TIME)} s does not use its ability.
+- red: a plain bird, for impact and toppling.
+- yellow: {soon} it dashes forward, much faster along its flight; it
+  punches through wood{wood}.
+- blue: {soon} it splits into three small birds that fan out slightly;
+  it shatters ice{ice}.
+- black: a bomb. It explodes at its first impact (or {fuse} if it has hit
+  nothing by then), damaging and throwing everything near it{stone}.
+A yellow or blue bird that hits something before its ability acts does not use it.
 
 Action syntax (one line): shoot(angle=A, power=P)
 - A is the launch angle in degrees above the horizontal, from {_g(C.ANGLE_MIN)} to {_g(C.ANGLE_MAX)}: 0 shoots
@@ -63,8 +77,7 @@ Action syntax (one line): shoot(angle=A, power=P)
 - A and P are used to {C.ACTION_DECIMALS} decimal places. A reply that does not give one such shot, or
   gives a value out of range, is an invalid action: it is recorded as such and ends the level, lost.
 {hints}
-Score: {C.SCORE_PIG} per pig killed, {C.SCORE_BLOCK} per block destroyed and, when the level is won,
-{C.SCORE_UNUSED_BIRD} per bird left unused. Stars: a win earns 1 star, 2 or 3 stars when its final
+Score: {score}. Stars: a win earns 1 star, 2 or 3 stars when its final
 score reaches the level's thresholds (stated under the picture). The thresholds are set so that
 3 stars need both: winning with as few birds as good play needs, and destroying much on the way."""
 
