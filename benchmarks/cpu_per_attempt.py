@@ -54,7 +54,7 @@ from deepphy.allocator import keep_freed_memory
 from deepphy.chat import Image
 from deepphy.config import RunConfig
 from deepphy.protocol import MemoryArtifacts, run_episode
-from deepphy.runner import resolve
+from deepphy.plan import plan
 
 # The drawing functions of each environment (module, attribute path): their CPU is "render".
 RENDERERS = {
@@ -146,10 +146,10 @@ async def env_work(config: RunConfig) -> tuple[int, dict[str, float], float]:
     """(attempts, CPU seconds per stage, CPU of the whole in-process loop) for the run's attempts."""
     from deepphy.agents import make_agent
 
-    spec, tasks, k_max = resolve(config)
+    the_plan = plan(config)
+    spec, tasks, k_max, options = the_plan.spec, the_plan.tasks, the_plan.k_max, the_plan.options
     cls = spec.load()
     keep_freed_memory()  # the allocator's settings of an environment worker
-    options = cls.Options(**config.env_options)
     cls.warm_up(options, tasks)
     clock = StageClock()
     env = TimedEnv(cls(options), clock)

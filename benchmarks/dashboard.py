@@ -23,7 +23,7 @@ from aiohttp.test_utils import TestClient, TestServer
 from deepphy.config import RunConfig
 from deepphy.dashboard.server import Dashboard, make_app
 from deepphy.dashboard.source import RunSource
-from deepphy.runner import resolve
+from deepphy.plan import plan
 from deepphy.runs.records import AttemptRecord, KeyFrame, StepRecord, Timing
 from deepphy.runs.store import ATTEMPTS, RunStore
 
@@ -43,7 +43,8 @@ def record(task, run: int, attempt: int, rng: random.Random, p: float, t: float)
 
 def make_run(out: Path, p: float) -> list[AttemptRecord]:
     config = RunConfig(env="phyre", runs=3)
-    _, tasks, k_max = resolve(config)
+    the_plan = plan(config)
+    tasks, k_max = the_plan.tasks, the_plan.k_max
     rng = random.Random(0)
     held_back = []
     t = time.time() - 3600

@@ -32,7 +32,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 from model_common import bench_endpoint  # noqa: E402
 
-from deepphy.runner import quiet_environment  # noqa: E402
+from deepphy.ray_env import quiet_environment  # noqa: E402
 
 quiet_environment()
 
@@ -40,7 +40,8 @@ import psutil  # noqa: E402
 import ray  # noqa: E402
 
 from deepphy.config import RunConfig, RuntimeOptions  # noqa: E402
-from deepphy.runner import ensure_ray, evaluate  # noqa: E402
+from deepphy.ray_connect import ensure_ray  # noqa: E402
+from deepphy.runner import evaluate  # noqa: E402
 from deepphy.runs.store import read_records  # noqa: E402
 
 GAMES = 40  # I-PHYRE's tasks; episodes = GAMES x runs

@@ -25,7 +25,7 @@ import time
 sys.path.insert(0, os.path.dirname(__file__))
 from model_common import bench_endpoint, iphyre_requests, server_stats  # noqa: E402
 
-from deepphy.runner import LOOPBACK_NODE_IP, quiet_environment  # noqa: E402
+from deepphy.ray_env import quiet_environment  # noqa: E402
 
 RAY_TIMEOUT_S = 120
 
@@ -83,7 +83,7 @@ def main() -> None:
 
             from deepphy import local_ray
 
-            local_ray.start(2, LOOPBACK_NODE_IP, temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"),
+            local_ray.start(2, local_ray.LOOPBACK_NODE_IP, temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"),
                             include_dashboard=False, object_store_memory=200 * 1024**2, logging_level=logging.WARNING)
             agent = None
             if a.agent:

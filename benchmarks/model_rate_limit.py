@@ -23,7 +23,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 from model_common import bench_endpoint, iphyre_requests, max_in_window, server_stats  # noqa: E402
 
 from deepphy import local_ray  # noqa: E402
-from deepphy.runner import LOOPBACK_NODE_IP, quiet_environment  # noqa: E402
+from deepphy.ray_env import quiet_environment  # noqa: E402
 
 RAY_TIMEOUT_S = 120
 
@@ -79,7 +79,7 @@ def main() -> None:
         rate_limits={"requests_per_min": a.rpm, "window_margin_s": a.margin},
     )
     try:  # from here on, the server is stopped however this ends (Ray's start failing included)
-        local_ray.start(2, LOOPBACK_NODE_IP, temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"),
+        local_ray.start(2, local_ray.LOOPBACK_NODE_IP, temp_dir=tempfile.mkdtemp(prefix="dpr", dir="/tmp"),
                         include_dashboard=False, object_store_memory=200 * 1024**2, logging_level=logging.WARNING)
         limiter = ensure_limiter(model_config("bench", models))
         workers = [make_model_worker("bench", get_spec("iphyre"), models_file=models) for _ in range(a.workers)]

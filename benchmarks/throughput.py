@@ -34,18 +34,20 @@ from deepphy.agents import make_agent
 from deepphy.allocator import keep_freed_memory
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.protocol import LocalEnv, run_episode
-from deepphy.runner import ensure_ray, evaluate, resolve
+from deepphy.plan import plan
+from deepphy.ray_connect import ensure_ray
+from deepphy.runner import evaluate
 from deepphy.runs.store import RunStore, read_records
 
 
 async def plain_loop(config: RunConfig, out: str) -> tuple[int, float]:
-    spec, tasks, k_max = resolve(config)
-    env_cls = spec.load()
+    the_plan = plan(config)
+    spec, tasks, k_max = the_plan.spec, the_plan.tasks, the_plan.k_max
     keep_freed_memory()  # as an environment worker does
     start = time.perf_counter()
-    env = LocalEnv(env_cls(env_cls.Options(**config.env_options)))
-    env_cls.warm_up(env.env.options, tasks)
-    prompt, model = spec.load_prompt(), make_agent(config.model)
+    env = LocalEnv(the_plan.make_env())
+    spec.load().warm_up(the_plan.options, tasks)
+    prompt, model = the_plan.prompt(), make_agent(config.model)
     attempts = 0
     with RunStore.create_or_resume(out, config) as store:
         for run in range(config.runs):
@@ -65,7 +67,7 @@ def _half(config: RunConfig, out: str) -> tuple[int, float, float]:
 def two_plain_loops(config: RunConfig, scratch: str) -> tuple[int, float]:
     """The plain loop on alternate halves of the tasks, in two processes at once:
     (attempts, seconds from the first's start to the last's end)."""
-    _, tasks, _ = resolve(config)
+    tasks = plan(config).tasks
     halves = [config.model_copy(update={"tasks": [t.id for t in tasks[i::2]], "limit": None}) for i in (0, 1)]
     with multiprocessing.get_context("spawn").Pool(2) as pool:
         done = pool.starmap(_half, [(h, os.path.join(scratch, f"half{i}")) for i, h in enumerate(halves)])

@@ -65,9 +65,11 @@ import functools
 import importlib
 import json
 import os
+import re
 import sys
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from importlib.metadata import PackageNotFoundError, packages_distributions, version
 from pathlib import Path
 from typing import Any, Callable, Literal, Mapping, NamedTuple
 
@@ -77,7 +79,7 @@ from deepphy.chat import PromptFormat, Usage
 from deepphy.config import AGENT_ENTRY, AgentSpec
 from deepphy.envs import Action, ActionSpace, get_spec
 from deepphy.messages import one_line, validation_message
-from deepphy.models import ModelClient, ModelRequest, ModelResponse, RequestContext, model_config
+from deepphy.models import ModelClient, ModelRequest, ModelResponse, RequestContext, client_from_config, model_config
 from deepphy.models.config import ModelConfig
 from deepphy.models.limiter import Limiter
 
@@ -183,8 +185,6 @@ class AgentFailed(AgentError):
 def load_agent(entry: str, args: Mapping[str, Any] | None = None) -> AgentSpec:
     """The spec of the agent at `entry` (package.module:factory) with `args`: its factory is
     imported (and nothing called), its package's version read. AgentError if it cannot be."""
-    import re
-
     if not re.match(AGENT_ENTRY, entry):
         raise AgentError(f"--agent {entry[:80]!r}: expected an entry point package.module:factory")
     # The working directory is importable, as for `python -m` (the `deepphy` script's own path is
@@ -219,8 +219,6 @@ def _factory(entry: str) -> Callable[..., Any]:
 def _package_version(module_name: str) -> tuple[str, str | None]:
     """(package, version) of the code at `module_name`: its installed distribution's, else
     the top-level package's `__version__` (None where it has none)."""
-    from importlib.metadata import PackageNotFoundError, packages_distributions, version
-
     top = module_name.split(".")[0]
     for dist in packages_distributions().get(top, []):
         try:
@@ -348,8 +346,6 @@ class AgentClient(ModelClient):
 
     def __init__(self, spec: AgentSpec, models_file: str | Path | None = None,
                  limiter_for: Callable[[ModelConfig], Limiter | None] = lambda config: None) -> None:
-        from deepphy.models import client_from_config
-
         self.spec, self.name = spec, spec.name
         _, version = _package_version(spec.entry.partition(":")[0])
         if version != spec.version:

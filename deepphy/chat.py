@@ -82,6 +82,7 @@ class Image(BaseModel):
 
     @classmethod
     def from_array(cls, name: str, caption: str, rgb: np.ndarray) -> "Image":
+        # OpenCV and NumPy: only where pictures are made or read (every command imports chat)
         import cv2
         import numpy as np
 
@@ -100,6 +101,7 @@ class Image(BaseModel):
 
     def to_array(self) -> np.ndarray:
         """Decode to an RGB uint8 array."""
+        # OpenCV and NumPy: only where pictures are made or read (every command imports chat)
         import cv2
         import numpy as np
 

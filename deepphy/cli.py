@@ -458,10 +458,9 @@ def _board_reports(paths: list[Path], plain_runs: bool = False) -> dict[Path, di
     directories given (a suite root), and the cells of a suite manifest not started yet
     (as reports with no record). `plain_runs`: a path that holds no run is passed on as
     one (its reader says what is wrong), else refused here."""
-    from deepphy.dashboard.source import runs_in
     from deepphy.metrics.leaderboard import not_started
     from deepphy.metrics.report import report_of
-    from deepphy.suite import SuiteError
+    from deepphy.runs.discovery import runs_in
 
     found: dict[Path, Path] = {}
     waiting: dict[Path, dict] = {}
@@ -471,10 +470,7 @@ def _board_reports(paths: list[Path], plain_runs: bool = False) -> dict[Path, di
         runs = runs_in(path)
         for run_dir in runs or ([path] if plain_runs else []):
             found.setdefault(run_dir.resolve(), run_dir)
-        try:
-            listed = not_started(path, set(found) | set(waiting))
-        except SuiteError as e:
-            raise UserError(str(e)) from None
+        listed = not_started(path, set(found) | set(waiting))  # a bad manifest: RunDirError
         waiting.update(listed)
         if not runs and not plain_runs and not listed:
             raise UserError(f"{path} holds no run directory (none up to three folders down)")
@@ -522,16 +518,11 @@ def cmd_envs(args: argparse.Namespace) -> int:
 def cmd_show(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from pydantic import ValidationError
-
     from deepphy.envs import get_spec
-    from deepphy.messages import validation_message
+    from deepphy.plan import env_options
 
-    cls = get_spec(args.env).load()
-    try:
-        options = cls.Options(**_env_options(args.env_option))
-    except ValidationError as e:
-        raise UserError(f"bad option for {args.env}: {validation_message(e)}") from None
+    spec = get_spec(args.env)
+    cls, options = spec.load(), env_options(spec, _env_options(args.env_option))
     tasks = {t.id: t for t in cls.tasks(options)}
     if args.task not in tasks:
         raise UserError(f"unknown {args.env} task {args.task!r}; see `deepphy envs --tasks {args.env}`")
@@ -590,25 +581,16 @@ def cmd_watch(args: argparse.Namespace) -> int:
     elif not address:
         raise UserError("give a run directory being written, or --address of a Ray cluster")
 
-    import ray
-
     from deepphy.config import RuntimeOptions
     from deepphy.metrics.live import format_progress
-    from deepphy.runner import ensure_ray
+    from deepphy.ray_connect import ensure_ray
+    from deepphy.runs.discovery import live_snapshots
 
     ensure_ray(RuntimeOptions(address=address))
     seen = False
     while True:
-        live = [a for a in ray.util.list_named_actors(all_namespaces=True)
-                if a["name"].startswith("deepphy/") and a["name"].endswith("/metrics")
-                and only in (None, a["name"].split("/")[1])]
-        for actor in live:
-            run_id = actor["name"].split("/")[1]
-            try:
-                handle = ray.get_actor(actor["name"], namespace=actor["namespace"])
-                snap = ray.get(handle.snapshot.remote(), timeout=10)
-            except Exception:  # noqa: BLE001 - the run ended between listing and asking
-                continue
+        live = live_snapshots(only)
+        for run_id, snap in live.items():
             seen = True
             print(json.dumps({"run_id": run_id, **snap}) if args.json
                   else f"[{_shown_path(snap.get('run_dir'))} {run_id}] {format_progress(snap)}", flush=True)
@@ -637,7 +619,8 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
 
     from deepphy import webguard
     from deepphy.dashboard.server import TOKEN_ENV, Dashboard, serve
-    from deepphy.dashboard.source import RunSource, is_run_dir, runs_in
+    from deepphy.dashboard.source import RunSource
+    from deepphy.runs.discovery import is_run_dir, runs_in
 
     if not args.run_dirs and not args.address:
         raise UserError("give run directories and/or --address of a Ray cluster")
@@ -654,9 +637,10 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
         paths += [p.resolve() for p in runs_in(arg)]
     sources = [RunSource(p) for p in dict.fromkeys(paths)]  # a bad run directory: a clear error now
     if args.address:
-        from deepphy.dashboard import live
+        from deepphy.config import RuntimeOptions
+        from deepphy.ray_connect import ensure_ray
 
-        live.connect(args.address)  # no cluster there: a clear error now, not a page that waits
+        ensure_ray(RuntimeOptions(address=args.address))  # no cluster there: a clear error now, not a page that waits
 
     # Beyond loopback, every request must carry a token (printed with the URL).
     token = webguard.token_for(args.host, TOKEN_ENV)
@@ -748,10 +732,10 @@ def cmd_play(args: argparse.Namespace) -> int:
 def cmd_plot(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from deepphy.dashboard.source import is_run_dir
     from deepphy.metrics.leaderboard import LeaderboardError, leaderboard
     from deepphy.metrics.report import mixed_task_sets
     from deepphy.plots import plot_all
+    from deepphy.runs.discovery import is_run_dir
 
     # a suite root (or any directory of runs) stands for its run directories
     by_dir = _board_reports(list(map(Path, args.run_dirs)), plain_runs=True)
@@ -779,11 +763,10 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
 
 def cmd_repair(args: argparse.Namespace) -> int:
-    from deepphy.runner import resolve
+    from deepphy.plan import plan
     from deepphy.runs.store import read_config, repair
 
-    _, _, k_max = resolve(read_config(args.run_dir))
-    done = repair(args.run_dir, k_max)
+    done = repair(args.run_dir, plan(read_config(args.run_dir)).k_max)
     if not done.dropped_lines:
         print(f"{args.run_dir}: nothing to repair")
         return 0
@@ -818,7 +801,8 @@ COMMANDS = {"run": cmd_run, "report": cmd_report, "leaderboard": cmd_leaderboard
 # exit status 2. Looked up among the modules loaded by then: an error of a module never
 # imported cannot have been raised, and `--version`, `--help` and a bad flag import none.
 USER_ERRORS = {
-    "deepphy.runner": ("ConfigError", "ClusterUnavailable"),
+    "deepphy.plan": ("ConfigError",),
+    "deepphy.ray_connect": ("ClusterUnavailable",),
     "deepphy.runs.store": ("RunDirError",),
     "deepphy.envs": ("UnknownEnvironment",),
     "deepphy.envs.shortcuts": ("UnknownShortcut",),

@@ -10,6 +10,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serializer, model_validator
 
 from deepphy.chat import PromptFormat
+from deepphy.envs import UnknownEnvironment, get_spec
 
 # What a run may ask for; its records are held to the same bounds (deepphy/runs/records.py).
 RUNS_MAX = 100_000  # repetitions of every task
@@ -113,8 +114,6 @@ class RunConfig(BaseModel):
 
     @model_validator(mode="after")
     def _known_names(self) -> "RunConfig":
-        from deepphy.envs import UnknownEnvironment, get_spec
-
         try:
             get_spec(self.env)
         except UnknownEnvironment as e:

@@ -33,18 +33,22 @@ not a count.
 
 from __future__ import annotations
 
+import asyncio
 import math
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
-from deepphy.agents import endpoint_config
+from deepphy.agent import declared
+from deepphy.agents import MockModel, endpoint_config
 from deepphy.chat import Image, ImagePart, Message, TextPart
-from deepphy.config import RunConfig
+from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs.base import Planning
 from deepphy.models.config import ModelConfig, Provider, RateLimits
 from deepphy.models.limiter import WINDOW_S
+from deepphy.plan import RunPlan, plan
 from deepphy.prompts import PastAttempt, PastStep, build_messages
+from deepphy.protocol import LocalEnv, MemoryArtifacts, run_episode
 from deepphy.seeding import seeded_rng
 
 CHARS_PER_TOKEN = 4  # text tokens ~ characters / 4 (OpenAI's and Anthropic's rule of thumb)
@@ -181,45 +185,33 @@ def _key(config: RunConfig, sample: int) -> str:
     return config.model_copy(update={"model": "", "runs": 1}).model_dump_json() + f"/{sample}"
 
 
-def baseline_requests(config: RunConfig, sample: int = DEFAULT_SAMPLE) -> list[int]:
-    """Requests MOCK makes in an episode of each of `config`'s first `sample` tasks (its
+def baseline_requests(plan: RunPlan, sample: int = DEFAULT_SAMPLE) -> list[int]:
+    """Requests MOCK makes in an episode of each of the plan's first `sample` tasks (its
     run 0 at the config's seed), played in-process through `deepphy.protocol.run_episode`."""
-    import asyncio
-
-    from deepphy.agents import MockModel
-    from deepphy.protocol import LocalEnv, MemoryArtifacts, run_episode
-    from deepphy.runner import resolve
-
-    key = _key(config, sample)
+    key = _key(plan.config, sample)
     if key in _baseline:
         return _baseline[key]
-    spec, tasks, k_max = resolve(config)
-    env_cls = spec.load()
-    env = LocalEnv(env_cls(env_cls.Options(**config.env_options)))
-    mock, prompt, artifacts = MockModel(), spec.load_prompt(), MemoryArtifacts()
-    config = config.model_copy(update={"model": "mock"})
+    env = LocalEnv(plan.make_env())
+    mock, prompt, artifacts = MockModel(), plan.prompt(), MemoryArtifacts()
+    config = plan.config.model_copy(update={"model": "mock"})
 
     async def episode(task) -> int:
-        records = await run_episode(spec, prompt, config, task, 0, k_max, env, mock, artifacts)
+        records = await run_episode(plan.spec, prompt, config, task, 0, plan.k_max, env, mock, artifacts)
         return sum(r.summary().decisions for r in records)
 
-    _baseline[key] = [asyncio.run(episode(task)) for task in tasks[:sample]]
+    _baseline[key] = [asyncio.run(episode(task)) for task in plan.tasks[:sample]]
     return _baseline[key]
 
 
-def measure(config: RunConfig, sample: int = DEFAULT_SAMPLE) -> list[TaskPrompts]:
-    """Render and measure the prompts of `config`'s first `sample` tasks (see the module)."""
-    from deepphy.runner import resolve
-
+def measure(plan: RunPlan, sample: int = DEFAULT_SAMPLE) -> list[TaskPrompts]:
+    """Render and measure the prompts of the plan's first `sample` tasks (see the module)."""
+    config = plan.config
     key = _key(config, sample)
     if key in _measured:
         return _measured[key]
-    spec, tasks, _ = resolve(config)
-    env_cls = spec.load()
-    env = env_cls(env_cls.Options(**config.env_options))
-    prompt = spec.load_prompt()
+    spec, env, prompt = plan.spec, plan.make_env(), plan.prompt()
     out = []
-    for task in tasks[:sample]:
+    for task in plan.tasks[:sample]:
         observation = env.reset(task)
         first = prompt_size(build_messages(prompt, config.format, task, observation, []))
         space = observation.action_space
@@ -244,15 +236,13 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
              label: str | None = None, max_in_flight: int | None = None) -> CellEstimate:
     """Measure the prompts of `config`'s first `sample` tasks and bound the whole run
     (`max_in_flight`: the run's episodes in progress at once; default the runtime's)."""
-    from deepphy.config import RuntimeOptions
-    from deepphy.runner import resolve
-
     if config.agent is not None:
         return estimate_agent(config, models_file, sample, label)
-    spec, tasks, k_max = resolve(config)
+    the_plan = plan(config)
+    spec, tasks, k_max = the_plan.spec, the_plan.tasks, the_plan.k_max
     endpoint: ModelConfig | None = endpoint_config(config.model, models_file)
-    measured = measure(config, sample)
-    recent_cap = spec.load_prompt().recent_steps_shown
+    measured = measure(the_plan, sample)
+    recent_cap = the_plan.prompt().recent_steps_shown
     steps = spec.max_steps
     firsts = [m.first for m in measured]
     per_attempt = [m.per_attempt for m in measured]
@@ -290,7 +280,7 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
     known = endpoint is not None and ("price" in endpoint.model_fields_set or endpoint.price.input_per_mtok > 0
                                       or endpoint.price.output_per_mtok > 0)
     input_max = episodes * sum(totals) / n_sampled if rule is not None else None
-    played = baseline_requests(config, sample)
+    played = baseline_requests(the_plan, sample)
     expected = episodes * sum(played) / len(played)
     limits = endpoint.rate_limits if endpoint is not None and endpoint.rate_limits.enabled else None
     in_flight = min(max_in_flight or RuntimeOptions().max_in_flight, episodes)
@@ -448,10 +438,6 @@ def estimate_agent(config: RunConfig, models_file: str | None = None, sample: in
     prompt): every endpoint's figures for this run times those requests, summed. Its time is
     its slowest endpoint's, as they run at once. An agent that declares no endpoint, or no
     number for one, gets its decisions bounded and a note that its cost cannot be."""
-    from dataclasses import replace
-
-    from deepphy.agent import declared
-
     label = label or f"{config.env} {config.model} {config.format.value}"
     calls = declared(config.agent).endpoints
     unknown = [name for name, per_decision in calls.items() if per_decision is None]

@@ -23,6 +23,7 @@ import pyarrow.parquet as pq
 
 from deepphy.envs import specs
 from deepphy.envs.base import Planning
+from deepphy.plan import plan
 from deepphy.runs.records import AttemptRecord, KeyFrame
 from deepphy.prompts.base import CURRENT_OBSERVATION
 from deepphy.runs.store import (
@@ -220,14 +221,12 @@ def _prompt(run_dir: Path, task: str, run: int, digest: str, logged: dict[str, l
 def rows_of(run_dir: Path, source: str, staging: Path, layout: str = "decisions") -> tuple[list[dict[str, Any]], int]:
     """The rows of one run directory in `layout` (copying the images they name into
     `staging`) and the image count."""
-    from deepphy.runner import resolve
-
     check_confined(run_dir)  # images/ or frames/ linked out of the run: refused (read, they would be empty)
     images = _Images(run_dir, staging, source)
     prompts: dict[str, Any] = {}
     rows = []
     records = read_records(run_dir)
-    check_records(run_dir, records, resolve(read_config(run_dir))[2], frames=False)  # no duplicated attempts
+    check_records(run_dir, records, plan(read_config(run_dir)).k_max, frames=False)  # no duplicated attempts
     records.sort(key=lambda r: (r.task, r.run, r.attempt))
     episode: tuple[str, int] | None = None
     for r in records:

@@ -217,7 +217,7 @@ def _final_picture(key_frames: Sequence[Image], shape: tuple[int, ...]) -> np.nd
     """The scene after the last step at the observation's `shape` (H, W, 3): the last key frame
     of that size (the settled scene), else the last key frame scaled into it, centred on its
     own background colour (PHYRE's and I-PHYRE's strips of frames over the attempt)."""
-    import cv2
+    import cv2  # OpenCV: only where a frame of another size is scaled
 
     frames = [f.to_array() for f in key_frames]
     same = [f for f in frames if f.shape == shape]

@@ -27,12 +27,19 @@ import os
 import random
 import re
 import socket
+import sys
 import threading
 import time
 from pathlib import Path
 from typing import Callable
 
+import psutil
+
 START_TRIES = 3
+# Ray takes 127.0.0.1 as "no address given" and advertises the machine's primary interface;
+# any other loopback address keeps the local cluster's traffic on loopback. macOS only
+# configures 127.0.0.1, so there we fall back to it.
+LOOPBACK_NODE_IP = "127.0.0.2" if sys.platform.startswith("linux") else "127.0.0.1"
 SESSION_WAIT_S = 120.0  # the GCS's port file (Ray's default wait is 30 s)
 WORKER_REGISTER_TIMEOUT_S = 300  # a worker process's start, imports included (Ray's default: 60 s)
 # Results up to this size travel inside the reply to their caller instead of through the object
@@ -123,6 +130,7 @@ def _kernel_ports(host: str, n: int) -> list[int]:
 @contextlib.contextmanager
 def _ray_params(fields: dict):
     """`ray.init(address="local")` with these RayParams fields set (it has no options for them)."""
+    # Ray (seconds to import): only when a local instance is started
     import ray._private.parameter as parameter
 
     original = parameter.RayParams
@@ -139,6 +147,7 @@ def _ray_params(fields: dict):
 
 
 def temp_root() -> str:
+    # Ray (seconds to import): only when a local instance is started
     import ray._common.utils
 
     return os.environ.get("RAY_TMPDIR") or ray._common.utils.get_default_ray_temp_dir()
@@ -154,6 +163,7 @@ def sessions_of(pid: int, root: str | None = None) -> list[str]:
 def _announce_listen_port(session_root: str, since: float, port: int, stop: threading.Event) -> None:
     """Write the dashboard agent's HTTP port file of the session this process starts, as soon
     as the session has a node (its GCS port file), unless the agent was faster."""
+    # Ray (seconds to import): only when a local instance is started
     from ray._raylet import DASHBOARD_AGENT_LISTEN_PORT_NAME, GCS_SERVER_PORT_NAME, persist_port
 
     while not stop.wait(0.05):
@@ -173,6 +183,7 @@ def start(num_cpus: int, node_ip: str, say: Callable[[str], None] = lambda _: No
           **init_kwargs) -> None:
     """`ray.init` of a new local instance (its sessions under `temp_dir`, default Ray's),
     retried; RayStartFailed with the cause and the logs' directory when it does not come up."""
+    # Ray (seconds to import): only when a local instance is started
     import ray
 
     root = temp_dir or temp_root()
@@ -236,8 +247,6 @@ def failure_cause(logs: str) -> str | None:
 def stop_leftovers(since: float) -> None:
     """Stop what a failed start left running: this process's children started since then
     (Ray's processes) and their descendants; never the watchdog (deepphy.reaper)."""
-    import psutil
-
     me = psutil.Process()
     family = []
     for child in me.children():

@@ -26,11 +26,14 @@ from collections import Counter, defaultdict
 from pathlib import Path
 from typing import Any, Sequence
 
+import matplotlib
 from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 
-from deepphy.envs import get_spec
+from deepphy.envs import get_env_class, get_spec
 from deepphy.metrics.leaderboard import Leaderboard
 from deepphy.metrics.report import sample_size, setting
 
@@ -371,8 +374,6 @@ def draw_vla_wm_scatter(ax: Axes, reports: Sequence[Report], k: int | None = Non
 
 
 def _option_default(env: str, option: str) -> Any:
-    from deepphy.envs import get_env_class
-
     field = get_env_class(env).Options.model_fields.get(option)
     return None if field is None else field.default
 
@@ -561,8 +562,6 @@ def draw_leaderboard(fig: Figure, board: Leaderboard) -> dict[str, Any]:
         drawn["panels"].append(panel)
     for ax in axes[len(panels):]:
         ax.set_visible(False)
-    from matplotlib.patches import Patch
-
     handles = [Patch(color=COLORS[r % len(COLORS)], label=label) for r, label in enumerate(labels_)]
     handles.append(Patch(facecolor="none", edgecolor="#9ca3af", hatch=UNFINISHED_HATCH,
                          label="unfinished (episodes done/total)"))
@@ -641,8 +640,6 @@ def plot_all(reports: Sequence[Report], out: str | Path, board: Leaderboard | No
     """Write every applicable figure as PNG and PDF, two columns wide (`<stem>`) and one
     (`<stem>-1col`), and the drawn data as figures.json; with `board`, the leaderboard too
     where it compares anything (two settings or more)."""
-    import matplotlib
-
     figures = figures_for(reports)
     compares = board is not None and (len(board.groups) > 1 or len(board.rows) > 1)
     if not figures and not compares:
@@ -678,9 +675,6 @@ def plot_all(reports: Sequence[Report], out: str | Path, board: Leaderboard | No
 def draw_figure(stem: str, reports: Sequence[Report], width: float, board: Leaderboard | None = None) -> Figure:
     """One figure by its stem (of `figures_for(reports)`, or "leaderboard" of `board`), drawn
     at `width` inches in the figures' style, laid out (for tests and notebooks)."""
-    import matplotlib
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
     with matplotlib.rc_context(STYLE):
         if stem == "leaderboard":
             fig = Figure(figsize=_leaderboard_size(board, width), layout="constrained")

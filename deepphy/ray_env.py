@@ -18,6 +18,6 @@ def quiet_environment() -> None:
     # virtual environment for its workers; ours is already installed and identical.
     os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
     if "ray._private.ray_constants" in sys.modules:  # imported already: it read the variable then
-        from ray._private import ray_constants
+        from ray._private import ray_constants  # loaded already: never the import that costs
 
         ray_constants.RAY_ENABLE_UV_RUN_RUNTIME_ENV = ray_constants.env_bool("RAY_ENABLE_UV_RUN_RUNTIME_ENV", True)

@@ -1,52 +1,37 @@
-"""One entry point for an evaluation: resolve the config, connect to Ray, open the run
-store, start the actors, drive the scheduler with a live progress view, and clean up."""
+"""One entry point for an evaluation: plan the config, connect to Ray, open the run store,
+start the actors, drive the scheduler with a live progress view, and clean up."""
 
 from __future__ import annotations
 
 import asyncio
-import logging
 import os
+import re
 import sys
 import time
-import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from pydantic import ValidationError
-
-from deepphy import reaper
-from deepphy.config import RunConfig, RuntimeOptions
-from deepphy.ray_env import quiet_environment  # noqa: F401 - also the benchmarks' and tests'
+from deepphy.actors.env_worker import EnvWorkerImpl, make_env_worker
+from deepphy.actors.metrics_actor import MetricsImpl, make_metrics_actor
+from deepphy.actors.model_worker import make_model_worker
 from deepphy.agent import AgentError
 from deepphy.agents import make_agent, run_endpoints
 from deepphy.collector import frozen_heap
-from deepphy.envs import EnvSpec, Task, get_spec
-from deepphy.messages import validation_message
-from deepphy.metrics import figures as F
+from deepphy.config import RunConfig, RuntimeOptions
+from deepphy.envs import EnvOptions, EnvSpec
+from deepphy.in_process import Actor, ThreadLoop
 from deepphy.metrics.live import _duration, format_progress
+from deepphy.plan import RunPlan, plan
+from deepphy.ray_connect import ClusterUnavailable, disconnect, ensure_ray
+from deepphy.runs.discovery import METRICS, actor_name, new_run_id
 from deepphy.runs.records import summaries_json
 from deepphy.runs.status import RunStatus, remove_status, write_status
 from deepphy.runs.store import CONFIG, RunStore, check_records, read_records
-from deepphy.scheduler import ray_errors
+from deepphy.scheduler import AgentWorkerModel, LocalAgentModel, Scheduler, WorkerModel, ray_errors
 from deepphy.start_view import StartView
 
 RAY_TIMEOUT_S = 60.0
-# Ray takes 127.0.0.1 as "no address given" and advertises the machine's primary interface;
-# any other loopback address keeps the local cluster's traffic on loopback. macOS only
-# configures 127.0.0.1, so there we fall back to it.
-LOOPBACK_NODE_IP = "127.0.0.2" if sys.platform.startswith("linux") else "127.0.0.1"
-
-
-CONNECT_TIMEOUT_S = 10.0  # joining a cluster: a clear error instead of Ray's minutes of retries
-
-
-class ConfigError(ValueError):
-    """A run config that cannot be evaluated. The message is for the user."""
-
-
-class ClusterUnavailable(RuntimeError):
-    """No usable Ray cluster at the address given. The message is for the user."""
 
 
 @dataclass
@@ -79,142 +64,13 @@ class Shared:
     agent_workers: dict[str, Any] = field(default_factory=dict)
 
 
-def make_env_workers(spec: EnvSpec, options: dict[str, Any], runtime: RuntimeOptions, name: str,
+def make_env_workers(spec: EnvSpec, options: EnvOptions, runtime: RuntimeOptions, name: str,
                      log_path: Callable[[int], str], cpus: float = 1.0) -> list[Any]:
     """The environment workers of one run or suite setting: `runtime.env_workers`, default
     one per CPU of the nodes that may host them, each asking `cpus` logical CPUs."""
-    from deepphy.actors.env_worker import make_env_worker
-
     return [make_env_worker(spec, options, name=f"{name}{i}", resource=runtime.env_resource, log_path=log_path(i),
                             max_concurrency=max(1000, runtime.max_in_flight), num_cpus=cpus)
             for i in range(runtime.env_workers or _default_workers(runtime.env_resource))]
-
-
-def resolve(config: RunConfig) -> tuple[EnvSpec, list[Task], int]:
-    """(environment spec, task list, attempts per task) for a config, or ConfigError."""
-    spec = get_spec(config.env)
-    env_cls = spec.load()
-    try:
-        options = env_cls.Options(**config.env_options)
-    except ValidationError as e:
-        raise ConfigError(f"bad option for {config.env}: {validation_message(e)}") from None
-    tasks = env_cls.tasks(options)
-    if config.tasks:
-        by_id = {t.id: t for t in tasks}
-        unknown = [t for t in config.tasks if t not in by_id]
-        if unknown:
-            raise ConfigError(
-                f"unknown {config.env} task(s) {', '.join(unknown[:5])}; see `deepphy envs --tasks {config.env}`"
-            )
-        tasks = [by_id[t] for t in config.tasks]
-    if config.limit:
-        tasks = tasks[: config.limit]
-    if not tasks:
-        raise ConfigError("the task selection is empty")
-    return spec, tasks, config.max_attempts or spec.max_attempts
-
-
-def ensure_ray(runtime: RuntimeOptions, say: Callable[[str], None] = lambda _: None) -> bool:
-    """Connect to Ray; returns True if this call connected (to disconnect or shut down later).
-    An address (HOST:PORT or "auto") joins that cluster; so does RAY_ADDRESS when none is
-    given (`ray job submit` and KubeRay set it for the driver). Otherwise a new local cluster
-    starts (deepphy.local_ray), even if `ray start` left an address file on this machine.
-    `say` hears what is being done (and a retried start)."""
-    import ray
-
-    if ray.is_initialized():
-        return False
-    quiet_environment()
-    address = runtime.address or os.environ.get("RAY_ADDRESS")
-    if address:
-        say(f"joining the Ray cluster at {address}")
-        join_cluster(address)
-        return True
-    from deepphy import local_ray
-
-    say(f"starting Ray (local, {runtime.num_cpus} CPUs)")
-    # Started first: if this process dies at any point from here (kill -9 during Ray's own
-    # start included), the watchdog stops every process of the local Ray instance it started.
-    reaper.start(local_ray.temp_root())
-    # Worker output stays in the run directory's logs/ and Ray's session logs, not the terminal.
-    local_ray.start(runtime.num_cpus, LOOPBACK_NODE_IP, say=say, include_dashboard=False,
-                    object_store_memory=256 * 1024**2, logging_level=logging.WARNING, log_to_driver=False)
-    return True
-
-
-def join_cluster(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
-    """`ray.init(address=...)`, failing within seconds with one line that names the address
-    (and the token setting, when that is the cause) instead of retrying for minutes.
-
-    Ray's client retries print to the process's stderr from C++; while connecting, that
-    output goes to a temporary file, read only to tell an authentication failure."""
-    import tempfile
-    import threading
-
-    import ray
-
-    host, sep, port = address.rpartition(":")
-    if sep and port.isdigit() and "://" not in address:  # HOST:PORT: is anything listening?
-        _probe(host, int(port), address, timeout_s)
-    failure: list[BaseException] = []
-
-    def connect() -> None:
-        try:
-            ray.init(address=address, logging_level=logging.WARNING)
-        except BaseException as e:  # noqa: BLE001 - reported below
-            failure.append(e)
-
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile(mode="w+b") as noise:
-        os.dup2(noise.fileno(), 2)
-        try:
-            worker = threading.Thread(target=connect, daemon=True)
-            worker.start()
-            deadline = time.monotonic() + timeout_s
-            said = ""
-            while worker.is_alive() and time.monotonic() < deadline and not _refused(said):
-                worker.join(0.25)
-                noise.seek(0)
-                said = noise.read().decode(errors="replace")
-            said += "".join(f"{type(e).__name__}: {e}" for e in failure)
-        finally:
-            if worker.is_alive() or failure:
-                # Ray keeps retrying in the background until this process exits: keep its
-                # output away from the terminal and give Python a stderr of its own.
-                sys.stderr = os.fdopen(saved, "w", buffering=1)
-            else:
-                os.dup2(saved, 2)
-                os.close(saved)
-    if not worker.is_alive() and not failure:
-        return
-    if _refused(said):
-        mode = os.environ.get("RAY_AUTH_MODE", "unset")
-        raise ClusterUnavailable(
-            f"the Ray cluster at {address} refused this client's credentials (RAY_AUTH_MODE is {mode}; a "
-            "cluster with token authentication needs RAY_AUTH_MODE=token and its token, e.g. ~/.ray/auth_token)"
-        )
-    if worker.is_alive():
-        raise ClusterUnavailable(f"the Ray cluster at {address} did not accept the connection within {timeout_s:g} s")
-    first = str(failure[0]).strip().splitlines()[0][:200] if str(failure[0]).strip() else type(failure[0]).__name__
-    raise ClusterUnavailable(f"cannot join the Ray cluster at {address}: {first}")
-
-
-def _refused(said: str) -> bool:
-    """Ray's words for a client whose token does not match the cluster's."""
-    said = said.lower()
-    return "unauthenticated" in said or "invalidauthtoken" in said or "auth_token" in said
-
-
-def _probe(host: str, port: int, address: str, timeout_s: float) -> None:
-    import socket
-
-    try:
-        with socket.create_connection((host or "127.0.0.1", port), timeout=min(timeout_s, 5.0)):
-            pass
-    except OSError as e:
-        reason = e.strerror or type(e).__name__
-        raise ClusterUnavailable(f"no Ray cluster answers at {address} ({reason.lower()})") from None
 
 
 def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None = None, *,
@@ -227,16 +83,16 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
     `view`: the command's start view (one is made here if the runtime shows progress)."""
     began = time.time()
     runtime = runtime or RuntimeOptions()
-    spec, tasks, k_max = resolve(config)
+    the_plan = plan(config)
     endpoints = run_endpoints(config, runtime.models_file)
     # a missing key (an agent that cannot be built) fails here, before anything is written
     make_agent(config.model, runtime.models_file, env=config.env, agent=config.agent)
     store = RunStore.claim(out, config)  # another run's directory, or one in use: fails here
     try:
         existing = read_records(out)
-        check_records(out, existing, k_max)
-        total = len(tasks) * config.runs
-        done = _episodes_done(existing, tasks, config.runs, k_max)
+        check_records(out, existing, the_plan.k_max)
+        total = the_plan.episodes_total
+        done = the_plan.episodes_done(existing)
         if done == total:  # nothing to do: no Ray
             store.close()
             return RunOutcome(out=Path(out), episodes_total=total, episodes_done=done, new_records=0, unfinished=[])
@@ -248,7 +104,7 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
         view = StartView(stream)
     if view:
         view.repeat()
-    run = _Run(config, runtime, spec, tasks, k_max, store, existing, done, total, stream, began, view)
+    run = _Run(the_plan, runtime, store, existing, done, stream, began, view)
     try:
         return run.in_process() if runtime.in_process else run.on_ray(endpoints, shared)
     finally:
@@ -263,18 +119,22 @@ class _Run:
     """One evaluation once its checks have passed: its workers (on Ray, or in this process),
     its scheduler and the live views, driven to the end."""
 
-    config: RunConfig
+    plan: RunPlan
     runtime: RuntimeOptions
-    spec: EnvSpec
-    tasks: list[Task]
-    k_max: int
     store: RunStore
     existing: list
     done: int  # episodes finished before this session
-    total: int
     stream: Any
     began: float  # time.time() when the run began: its elapsed time counts from here
     view: StartView | None  # what the run is doing until its progress line begins
+
+    @property
+    def config(self) -> RunConfig:
+        return self.plan.config
+
+    @property
+    def total(self) -> int:
+        return self.plan.episodes_total
 
     def say(self, phase: str) -> None:
         if self.view:
@@ -282,22 +142,17 @@ class _Run:
 
     def in_process(self) -> RunOutcome:
         """The workers in this process (deepphy.in_process): no Ray imported or started."""
-        from deepphy.actors.env_worker import EnvWorkerImpl
-        from deepphy.actors.metrics_actor import MetricsImpl
-        from deepphy.in_process import Actor, ThreadLoop
-        from deepphy.scheduler import LocalAgentModel
-
         self.say("starting the environment in this process")
-        status = RunStatus(run_id=uuid.uuid4().hex[:8], pid=os.getpid(), phase="starting", since=time.time())
+        status = RunStatus(run_id=new_run_id(), pid=os.getpid(), phase="starting", since=time.time())
         write_status(self.store.path, status)
-        spec, options = self.spec, self.config.env_options
+        spec, options = self.plan.spec, self.plan.options
         loops = [ThreadLoop(f"deepphy-env{i}") for i in range(self.runtime.env_workers or 1)]
         try:
             env_workers = [Actor(lambda: EnvWorkerImpl(spec, options), t.loop) for t in loops]
             model = make_agent(self.config.model, self.runtime.models_file, agent=self.config.agent)  # its own limiter
             if self.config.agent is not None:  # told when an episode ends, to release its state
                 model = LocalAgentModel(model, self.config)
-            metrics = Actor(lambda: MetricsImpl(self.total, self.k_max, spec.max_steps, run=self._run_info(),
+            metrics = Actor(lambda: MetricsImpl(self.total, self.plan.k_max, spec.max_steps, run=self._run_info(),
                                                 started=self.began))
             return self._drive(env_workers, model, metrics, status, close_model=model.close)
         finally:
@@ -307,22 +162,19 @@ class _Run:
     def on_ray(self, endpoints: list, shared: Shared | None) -> RunOutcome:
         """The workers as Ray actors, on a local Ray started here or the cluster joined."""
         started_ray = ensure_ray(self.runtime, self.say)  # no cluster at the address: fails before anything is written
+        # Ray at import (seconds): loaded by ensure_ray by now, never by a run in this process
         import ray
-
-        from deepphy.actors.metrics_actor import make_metrics_actor
-        from deepphy.actors.model_worker import make_model_worker
         from deepphy.actors.rate_limiter import ensure_limiter
-        from deepphy.scheduler import AgentWorkerModel, WorkerModel
 
-        config, runtime, store = self.config, self.runtime, self.store
+        config, runtime, store, spec = self.config, self.runtime, self.store, self.plan.spec
         actors: list[Any] = []
         model_actors: list[Any] = []
         try:
             self.say("starting workers")
-            # Named "deepphy/<run id>/<role>": a dashboard or an operator can find a live run's
+            # Named (deepphy.runs.discovery): a dashboard or an operator can find a live run's
             # metrics actor (ray.util.list_named_actors) and poll its snapshot.
-            prefix = f"deepphy/{uuid.uuid4().hex[:8]}"
-            status = RunStatus(run_id=prefix.split("/")[1], pid=os.getpid(), phase="starting", since=time.time(),
+            run_id = new_run_id()
+            status = RunStatus(run_id=run_id, pid=os.getpid(), phase="starting", since=time.time(),
                                ray_address=ray.get_runtime_context().gcs_address,
                                ray_auth=os.environ.get("RAY_AUTH_MODE"))
             write_status(store.path, status)
@@ -332,7 +184,7 @@ class _Run:
             if shared is not None:
                 env_workers = shared.env_workers
             else:
-                env_workers = make_env_workers(self.spec, config.env_options, runtime, f"{prefix}/env",
+                env_workers = make_env_workers(spec, self.plan.options, runtime, actor_name(run_id, "env"),
                                                lambda i: store.log_path(f"env{i}"))
             # The driver owns the endpoints' limiters, so a model worker's restart keeps their windows.
             limiters = [limiter for e in endpoints if (limiter := ensure_limiter(e)) is not None]
@@ -341,7 +193,7 @@ class _Run:
             else:
                 worker = shared.agent_workers.get(config.model) if shared is not None else None
                 model_actors = [] if worker is not None else [
-                    make_model_worker(config.model, self.spec, name=f"{prefix}/model", models_file=runtime.models_file,
+                    make_model_worker(config.model, spec, name=actor_name(run_id, "model"), models_file=runtime.models_file,
                                       max_concurrency=max(1000, runtime.max_in_flight), agent=config.agent)]
                 worker = worker or model_actors[0]
                 probe = (store.path / CONFIG).resolve()
@@ -356,7 +208,7 @@ class _Run:
                 shares_files = seen == probe.read_bytes()
                 model = (AgentWorkerModel(worker, shares_files, config) if config.agent is not None
                          else WorkerModel(worker, shares_files))
-            metrics = make_metrics_actor(self.total, self.k_max, self.spec.max_steps, name=f"{prefix}/metrics",
+            metrics = make_metrics_actor(self.total, self.plan.k_max, spec.max_steps, name=actor_name(run_id, METRICS),
                                          run=self._run_info(), started=self.began)
             actors = [*(env_workers if shared is None else []), *model_actors, metrics,
                       *(limiters if shared is None else [])]
@@ -374,7 +226,7 @@ class _Run:
                     ray.kill(actor)
                 except Exception:  # noqa: BLE001 - already gone
                     pass
-            _stop_ray(started_ray)
+            disconnect(started_ray)
 
     def _run_info(self) -> dict[str, Any]:
         """What the metrics actor tells dashboards about the run."""
@@ -382,13 +234,10 @@ class _Run:
 
     def _drive(self, env_workers: list[Any], model: Any, metrics: Any, status: RunStatus,
                shared: Shared | None = None, close_model: Callable[[], Any] | None = None) -> RunOutcome:
-        from deepphy.scheduler import Scheduler
-
         # Not waited for here: the metrics actor's process starts while the workers start and the
         # first attempts run (its calls queue in order until it is up); `_drive` checks it came up.
         metrics_ready = metrics.add.remote(summaries_json([r.summary() for r in self.existing]), resumed=True)
-        scheduler = Scheduler(self.config, self.runtime, self.spec, self.tasks, self.store, env_workers, model,
-                              metrics, self.k_max)
+        scheduler = Scheduler(self.plan, self.runtime, self.store, env_workers, model, metrics)
         if shared is not None:
             shared.watch(metrics, scheduler)
         if self.view:  # the progress line from here on
@@ -426,8 +275,6 @@ class _Run:
 
 def _raised(error: BaseException) -> str:
     """The exception an actor's constructor raised, as its one line in Ray's error text."""
-    import re
-
     raised = [line.strip() for line in str(error).splitlines() if re.match(r"^\s*[\w.]+(Error|Exception): ", line)]
     return raised[-1] if raised else str(error).strip().splitlines()[0]
 
@@ -435,28 +282,13 @@ def _raised(error: BaseException) -> str:
 def _started(ref: Any, what: str, runtime: RuntimeOptions) -> Any:
     """The result of an actor's first call: its process must start first, which takes long on
     a busy machine (bounded like an environment step); one line if it never does."""
-    import ray
+    import ray  # loaded by ensure_ray: a run in this process never comes here
 
     try:
         return ray.get(ref, timeout=runtime.step_timeout_s)
     except ray.exceptions.GetTimeoutError:
         raise ClusterUnavailable(f"{what} did not start within {runtime.step_timeout_s:g} s (an overloaded "
                                  "machine, or no room on the cluster); run the same command again to resume") from None
-
-
-def episodes_done(config: RunConfig, out: str | Path) -> tuple[int, int]:
-    """(episodes complete, episodes) of the run `config` in directory `out` (none complete
-    while it holds no run). Needs no Ray; reads the log without taking the run's lock."""
-    _, tasks, k_max = resolve(config)
-    total = len(tasks) * config.runs
-    if not (Path(out) / CONFIG).is_file():
-        return 0, total
-    return _episodes_done(read_records(out), tasks, config.runs, k_max), total
-
-
-def _episodes_done(records, tasks: list[Task], runs: int, k_max: int) -> int:
-    wanted = {t.id for t in tasks}
-    return sum(1 for e in F.episodes(records, k_max) if e.finished and e.run < runs and e.task in wanted)
 
 
 async def _worker_stats(env_workers: list[Any]) -> list[dict[str, int]]:
@@ -466,16 +298,9 @@ async def _worker_stats(env_workers: list[Any]) -> list[dict[str, int]]:
     return [a for a in answers if isinstance(a, dict)]
 
 
-def _stop_ray(started: bool) -> None:
-    import ray
-
-    if started:
-        ray.shutdown()
-
-
 def _default_workers(resource: str | None) -> int:
     """One worker per CPU of the nodes that may host environment workers."""
-    import ray
+    import ray  # loaded by ensure_ray: a run in this process never comes here
 
     nodes = [n for n in ray.nodes() if n.get("Alive") and (resource is None or resource in n["Resources"])]
     return max(1, int(sum(n["Resources"].get("CPU", 0) for n in nodes)))
@@ -537,7 +362,7 @@ async def _drive(scheduler, existing, env_workers, metrics, metrics_ready, runti
 def _why_died(error: BaseException) -> str:
     """Why Ray says workers died: their node's death where their node died (a local instance's
     raylet dies with a failed agent), else the error's own words."""
-    import ray
+    import ray  # loaded by ensure_ray: a run in this process never comes here
 
     lines = str(error).splitlines() or [type(error).__name__]
     ips = [line.split(":", 1)[1].strip() for line in lines if line.startswith("\tip:")]

@@ -24,9 +24,10 @@ from typing import Any, Iterator, Sequence
 from deepphy.actors.env_worker import LostEpisode
 from deepphy.agent import AgentFailed, Episode
 from deepphy.config import RunConfig, RuntimeOptions
-from deepphy.envs import Action, EnvSpec, Observation, StepResult, Task
+from deepphy.envs import Action, Observation, StepResult, Task
 from deepphy.envs.base import ObservationCache
 from deepphy.models import AccessDenied, ModelError, ModelRequest, ModelResponse, RequestRejected
+from deepphy.plan import RunPlan
 from deepphy.protocol import ModelHandle, run_attempt
 from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished, summaries_json
 from deepphy.runs.store import RunStore, RunWriteError
@@ -69,7 +70,7 @@ def cancel(ref: Any) -> None:
     if isinstance(ref, asyncio.Future):
         ref.cancel()
     else:
-        import ray
+        import ray  # a Ray call's ref: Ray is loaded (a run in this process has futures only)
 
         ray.cancel(ref, force=False)
 
@@ -288,23 +289,21 @@ class LocalAgentModel:
 class Scheduler:
     def __init__(
         self,
-        config: RunConfig,
+        plan: RunPlan,
         runtime: RuntimeOptions,
-        spec: EnvSpec,
-        tasks: Sequence[Task],
         store: RunStore,
         env_workers: list[Any],
         model: ModelHandle,
         metrics: Any,  # the metrics actor; None: no live figures (`deepphy play`)
-        k_max: int,
         max_model_requeues: int = MODEL_REQUEUES,
         local_env: Any = None,  # a protocol.EnvHandle
     ) -> None:
-        self.config = config
+        self.plan = plan
+        self.config = plan.config
         self.runtime = runtime
-        self.spec = spec
-        self.prompt = spec.load_prompt()
-        self.tasks = list(tasks)
+        self.spec = plan.spec
+        self.prompt = plan.prompt()
+        self.tasks = list(plan.tasks)
         self.store = store
         self.env_workers = env_workers
         self.load = [0] * len(env_workers)  # live episodes per worker
@@ -312,7 +311,7 @@ class Scheduler:
         self.model = model
         self.answers_at_once = getattr(model, "answers_at_once", False)
         self.metrics = metrics
-        self.k_max = k_max
+        self.k_max = plan.k_max
         self.max_model_requeues = max_model_requeues
         self.local_env = local_env  # `deepphy play`: one environment in this process instead of the workers
         self.failed: list[str] = []  # episodes left unfinished (model or worker failures, budget), for the caller

@@ -75,7 +75,7 @@ class StartView:
         flag's error waits for no process)."""
         if self._helper is not None or self._fd is None or self._stopped:
             return
-        import subprocess
+        import subprocess  # only once the arguments are good: a bad flag's error waits for nothing
 
         try:
             self._helper = subprocess.Popen(

@@ -21,6 +21,7 @@ limiter), with one progress view for the suite.
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import itertools
 import json
 import re
@@ -33,12 +34,21 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from deepphy.actors.model_worker import make_model_worker
+from deepphy.agent import AgentError, load_agent
+from deepphy.agents import expand_models, make_agent, run_endpoints
 from deepphy.chat import PromptFormat
 from deepphy.config import RunConfig, RuntimeOptions
+from deepphy.envs.shortcuts import is_shortcut, shortcut_for
 from deepphy.messages import one_line, validation_message
-from deepphy.runs.store import atomic_write
+from deepphy.metrics.live import _duration, _rate, format_progress
+from deepphy.plan import plan
+from deepphy.ray_connect import disconnect, ensure_ray
+from deepphy.runner import Shared, evaluate, make_env_workers
+from deepphy.runs.discovery import actor_name, is_run_dir, new_run_id
+from deepphy.runs.manifest import MANIFEST, Cell, read_manifest, write_manifest
+from deepphy.runs.store import RunStore, read_records
 
-MANIFEST = "suite.json"
 LOGS = "logs"  # the environment workers' output (shared by the cells of one environment setting)
 SHIPPED = Path(__file__).with_name("suites")  # <name>.yaml: the suites `--suite NAME` knows
 
@@ -90,12 +100,6 @@ class Suite(BaseModel):
     agents: list[SuiteAgent] = Field(default_factory=list)
 
 
-@dataclass(frozen=True)
-class Cell:
-    dir: str  # relative to the suite root
-    config: RunConfig
-
-
 def load_suite(name_or_path: str) -> Suite:
     """A shipped suite by name, or a suite file."""
     path = SHIPPED / f"{name_or_path}.yaml" if re.fullmatch(r"[a-z0-9_-]+", name_or_path) else None
@@ -123,15 +127,11 @@ def _name_part(value: Any) -> str:
 def suite_models(suite: Suite, models: list[str] | None = None, models_file: str | None = None) -> list[str]:
     """The models of a suite's cells: `models` (default the suite's own), each group of the
     models file replaced by its entries (`--model paper` is the paper's models)."""
-    from deepphy.agents import expand_models
-
     return expand_models(models or suite.models, models_file)
 
 
 def cells(suite: Suite, models: list[str] | None = None, models_file: str | None = None) -> list[Cell]:
     """Every cell: environments x option values x models x formats, in that order."""
-    from deepphy.agent import AgentError, load_agent
-
     out: list[Cell] = []
     models = suite_models(suite, models, models_file)
     try:
@@ -164,35 +164,10 @@ def cells(suite: Suite, models: list[str] | None = None, models_file: str | None
     return out
 
 
-def _manifest(suite: Suite, cell_list: list[Cell]) -> dict[str, Any]:
-    return {"suite": suite.name, "description": suite.description,
-            "cells": [{"dir": c.dir, "config": c.config.model_dump(mode="json")} for c in cell_list]}
-
-
-def read_manifest(root: Path) -> list[Cell]:
-    """The cells a suite root's manifest names (validated: each a directory inside the root)."""
-    path = root / MANIFEST
-    try:
-        data = json.loads(path.read_text())
-        listed = [Cell(str(c["dir"]), RunConfig.model_validate(c["config"])) for c in data["cells"]]
-    except (OSError, ValueError, KeyError, TypeError) as e:
-        raise SuiteError(f"{path} is not a suite manifest ({one_line(str(e))[:200]})") from None
-    for cell in listed:
-        if not re.fullmatch(r"[A-Za-z0-9._=+-]+(/[A-Za-z0-9._=+-]+)*", cell.dir) or ".." in cell.dir.split("/"):
-            raise SuiteError(f"{path} names a cell outside the suite root: {cell.dir[:100]!r}")
-    return listed
-
-
-def plan(suite: Suite, root: str | Path, models: list[str] | None, models_file: str | None) -> list[Cell]:
+def checked_cells(suite: Suite, root: str | Path, models: list[str] | None, models_file: str | None) -> list[Cell]:
     """The cells to run into `root`, every check that needs no Ray done (and nothing
     written): the root is new, empty or this suite's; each cell's options, tasks and
     model (its key included) are valid and its directory new or holding that config."""
-    from deepphy.agents import make_agent, run_endpoints
-    from deepphy.envs import get_spec
-    from deepphy.envs.shortcuts import is_shortcut, shortcut_for
-    from deepphy.runner import resolve
-    from deepphy.runs.store import RunStore
-
     root = Path(root)
     wanted = cells(suite, models, models_file)
     if root.exists() and not root.is_dir():
@@ -213,9 +188,9 @@ def plan(suite: Suite, root: str | Path, models: list[str] | None, models_file: 
         run_endpoints(config, models_file)
         make_agent(config.model, models_file, agent=config.agent)  # a missing key fails here
     for cell in wanted:
-        resolve(cell.config)
+        cell_plan = plan(cell.config)
         if is_shortcut(cell.config.model):  # one of the cell's environment's own shortcuts
-            shortcut_for(get_spec(cell.config.env), cell.config.model)
+            shortcut_for(cell_plan.spec, cell.config.model)
         RunStore.check(root / cell.dir, cell.config)
     return wanted
 
@@ -241,14 +216,11 @@ def run_suite(suite: Suite, root: str | Path, runtime: RuntimeOptions, models: l
     (started here unless this process is connected already), with one progress view
     (`cell_lines`: a line per running cell too). `view`: the command's start view, which
     says the Ray start and ends where the suite's own view begins."""
-    from deepphy.runner import ensure_ray, episodes_done
-
     root = Path(root)
-    wanted = plan(suite, root, models, runtime.models_file)
+    wanted = checked_cells(suite, root, models, runtime.models_file)
     added = len(wanted) - len(read_manifest(root)) if (root / MANIFEST).exists() else 0
     try:
-        root.mkdir(parents=True, exist_ok=True)
-        atomic_write(root / MANIFEST, json.dumps(_manifest(suite, wanted), indent=2).encode())
+        write_manifest(root, suite.name, suite.description, wanted)
     except OSError as e:
         raise SuiteError(f"cannot write {root / MANIFEST}: {e.strerror or e}") from None
     if added:
@@ -267,11 +239,16 @@ def run_suite(suite: Suite, root: str | Path, runtime: RuntimeOptions, models: l
         try:
             finished.update(Interleaved(suite.name, root, runtime, wanted, left, progress, stream, cell_lines).run())
         finally:
-            if started:
-                import ray
-
-                ray.shutdown()
+            disconnect(started)
     return [finished[c.dir] for c in wanted]
+
+
+def episodes_done(config: RunConfig, run_dir: Path) -> tuple[int, int]:
+    """(episodes complete, episodes) of a cell: none complete while its directory holds no run.
+    Reads the log without taking the run's lock."""
+    cell_plan = plan(config)
+    done = cell_plan.episodes_done(read_records(run_dir)) if is_run_dir(run_dir) else 0
+    return done, cell_plan.episodes_total
 
 
 def setting_of(config: RunConfig) -> str:
@@ -293,15 +270,13 @@ class Interleaved:
 
     def __init__(self, name: str, root: Path, runtime: RuntimeOptions, wanted: list[Cell], left: list[Cell],
                  progress: dict[str, tuple[int, int]], stream, cell_lines: bool) -> None:
-        import uuid
-
         self.name, self.root, self.stream, self.cell_lines = name, root, stream, cell_lines
         self.show = runtime.progress
         self.runtime = runtime.model_copy(update={"progress": False})  # this view replaces the cells' own
         self.wanted, self.waiting = wanted, list(left)
         self.progress = dict(progress)  # cell -> (episodes done, total): at the start, then as snapshots come
         self.new_attempts: dict[str, int] = {}
-        self.id = uuid.uuid4().hex[:8]
+        self.id = new_run_id()
         self.workers: dict[str, list[Any]] = {}  # setting -> its environment workers
         self.settings_started = 0
         self.running: dict[Any, Cell] = {}  # future -> cell
@@ -314,10 +289,8 @@ class Interleaved:
         self.began = self.episodes_at_start = 0.0
 
     def run(self) -> dict[str, CellOutcome]:
-        import concurrent.futures as cf
-
+        # Ray at import: loaded by run_suite's ensure_ray by now
         from deepphy.actors.rate_limiter import ensure_limiter
-        from deepphy.agents import run_endpoints
 
         for cell in self.waiting:
             for endpoint in run_endpoints(cell.config, self.runtime.models_file):
@@ -375,18 +348,15 @@ class Interleaved:
 
     def _start_agent_workers(self) -> None:
         """One model worker per user's agent, for all its cells (one setup, one GPU)."""
-        from deepphy.actors.model_worker import make_model_worker
-        from deepphy.runner import resolve
-
         for n, model in enumerate(dict.fromkeys(c.config.model for c in self.waiting if c.config.agent is not None)):
             configs = [c.config for c in self.waiting if c.config.model == model]
-            specs = list({resolve(c)[0].name: resolve(c)[0] for c in configs}.values())
+            specs = list({c.env: plan(c).spec for c in configs}.values())
             self.agent_workers[model] = make_model_worker(
-                model, specs, name=f"deepphy/{self.id}/agent{n}", models_file=self.runtime.models_file,
+                model, specs, name=actor_name(self.id, f"agent{n}"), models_file=self.runtime.models_file,
                 max_concurrency=max(1000, CELLS_AT_ONCE * self.runtime.max_in_flight), agent=configs[0].agent)
 
     def _stop_agent_workers(self) -> None:
-        import ray
+        import ray  # loaded by run_suite's ensure_ray (a dry run never imports it)
 
         workers = list(self.agent_workers.values())
         if not workers:
@@ -402,8 +372,6 @@ class Interleaved:
     # -- which cell next, and the workers of its setting ---------------------------------
 
     def _next(self) -> Cell | None:
-        from deepphy.agents import run_endpoints
-
         active = set(self.workers)
         room = len(active) < SETTINGS_AT_ONCE
         candidates = [c for c in self.waiting if setting_of(c.config) in active]
@@ -426,14 +394,12 @@ class Interleaved:
         return cell
 
     def _start_workers(self, config: RunConfig) -> list[Any]:
-        from deepphy.runner import make_env_workers, resolve
-
-        spec = resolve(config)[0]
+        setting = plan(config)
         n = self.settings_started
         self.settings_started += 1
         (self.root / LOGS).mkdir(parents=True, exist_ok=True)
-        return make_env_workers(spec, config.env_options, self.runtime, f"deepphy/{self.id}/{n}-env",
-                                lambda i: str(self.root / LOGS / f"{n}-{spec.name}-env{i}.log"),
+        return make_env_workers(setting.spec, setting.options, self.runtime, actor_name(self.id, f"{n}-env"),
+                                lambda i: str(self.root / LOGS / f"{n}-{setting.spec.name}-env{i}.log"),
                                 cpus=1 / SETTINGS_AT_ONCE)
 
     def _release_setting(self, setting: str, force: bool = False) -> None:
@@ -444,8 +410,6 @@ class Interleaved:
                 _kill(worker)
 
     def _evaluate(self, cell: Cell):
-        from deepphy.runner import Shared, evaluate
-
         return evaluate(cell.config, self.root / cell.dir, self.runtime, stream=self.stream,
                         shared=Shared(self.workers[setting_of(cell.config)], lambda m, s: self._watch(cell, m, s),
                                       self.agent_workers))
@@ -470,9 +434,7 @@ class Interleaved:
         self.last_view = 0.0  # the suite line again at once, below what was said
 
     def _view(self) -> None:
-        import ray
-
-        from deepphy.metrics.live import format_progress
+        import ray  # loaded by run_suite's ensure_ray (a dry run never imports it)
 
         now = time.monotonic()
         if not self.show or now - self.last_view < (VIEW_TTY_S if self.tty else VIEW_LOG_S) - 0.05:
@@ -504,8 +466,6 @@ def suite_line(name: str, wanted: list[Cell], progress: dict[str, tuple[int, int
                elapsed_s: float, episodes_at_start: float, limits: dict[str, dict]) -> str:
     """The suite's progress line: cells done, episodes, attempts/s, each endpoint's
     requests in its limiter's window against its requests/min, ETA, time taken."""
-    from deepphy.metrics.live import _duration, _rate
-
     cells_done = sum(progress[c.dir][0] == progress[c.dir][1] for c in wanted)
     done = sum(progress[c.dir][0] for c in wanted)
     total = sum(progress[c.dir][1] for c in wanted)
@@ -524,7 +484,7 @@ def suite_line(name: str, wanted: list[Cell], progress: dict[str, tuple[int, int
 
 
 def _kill(actor: Any) -> None:
-    import ray
+    import ray  # loaded by run_suite's ensure_ray (a dry run never imports it)
 
     try:
         ray.kill(actor)

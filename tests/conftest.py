@@ -16,7 +16,7 @@ from deepphy.cache import cache_root
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 os.environ.setdefault("RAY_AUTH_MODE", "disabled")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
-os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")  # see deepphy.runner.quiet_environment
+os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")  # see deepphy.ray_env.quiet_environment
 # One compile cache: the one `make setup` warmed (python -m deepphy.warm_up), so a test run after
 # it compiles no kernel. Pinned here because some tests move HOME (pooltool writes its config
 # there), which would move a HOME-relative cache. Tests that need a cold cache make their own.
@@ -65,11 +65,10 @@ def ray_cluster():
     import ray
 
     from deepphy import local_ray
-    from deepphy.runner import LOOPBACK_NODE_IP
 
     temp_dir = tempfile.mkdtemp(prefix="dpray", dir="/tmp")  # short: socket paths have a length limit
     # As `deepphy run` starts it: the machine the tests run on is often busy.
-    local_ray.start(2, LOOPBACK_NODE_IP, temp_dir=temp_dir, include_dashboard=False,
+    local_ray.start(2, local_ray.LOOPBACK_NODE_IP, temp_dir=temp_dir, include_dashboard=False,
                     object_store_memory=200 * 1024**2, logging_level=logging.WARNING)
     address = ray.get_runtime_context().gcs_address
     assert address.startswith("127."), f"the test cluster must stay on loopback, got {address}"

@@ -20,7 +20,8 @@ import cv2
 import numpy as np
 
 from deepphy.config import RunConfig, RuntimeOptions
-from deepphy.runner import evaluate, resolve
+from deepphy.plan import plan
+from deepphy.runner import evaluate
 from deepphy.runs.records import AttemptRecord, KeyFrame, ModelStats, StepRecord, Timing
 from deepphy.runs.store import ATTEMPTS, PROMPTS, RunStore, prompt_log
 
@@ -51,7 +52,8 @@ def synthetic_run(out: Path, env: str = "kinetix", *, runs: int = 2, seed: int =
                   max_steps: int = 4, p_success: float = 0.3, stars: bool = False, model: str = "mock") -> Path:
     config = RunConfig(env=env, model=model, runs=runs, seed=seed, format=fmt, env_options=env_options or {},
                        tasks=tasks, limit=limit)
-    _, task_list, k_max = resolve(config)
+    the_plan = plan(config)
+    task_list, k_max = the_plan.tasks, the_plan.k_max
     rng = random.Random(f"{env}-{seed}-{json.dumps(env_options, sort_keys=True)}" + ("" if model == "mock" else model))
     with RunStore.create_or_resume(out, config) as store:
         for run in range(runs):

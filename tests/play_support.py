@@ -14,7 +14,7 @@ from deepphy.models.base import ModelRequest, ModelResponse
 from deepphy.play.server import serve
 from deepphy.play.session import PlaySession
 from deepphy.protocol import LocalEnv, run_episode
-from deepphy.runner import resolve
+from deepphy.plan import plan
 from deepphy.runs.records import AttemptRecord
 from deepphy.runs.store import RunStore, read_records
 
@@ -69,10 +69,10 @@ class ScriptedModel:
 def model_run(config: RunConfig, out: Path, reply: Callable[[str, int, int, int], str]) -> list[AttemptRecord]:
     """The tasks of `config` with `reply`'s texts as a model's replies, through the attempt
     protocol in this process, into a run directory of its own."""
-    spec, tasks, k_max = resolve(config)
-    env_cls = spec.load()
-    env = LocalEnv(env_cls(env_cls.Options(**config.env_options)))
-    prompt, model = spec.load_prompt(), ScriptedModel(reply)
+    the_plan = plan(config)
+    spec, tasks, k_max = the_plan.spec, the_plan.tasks, the_plan.k_max
+    env = LocalEnv(the_plan.make_env())
+    prompt, model = the_plan.prompt(), ScriptedModel(reply)
 
     async def play() -> None:
         with RunStore.create_or_resume(out, config) as store:

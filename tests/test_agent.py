@@ -36,9 +36,10 @@ from deepphy.estimate import estimate  # noqa: E402
 from deepphy.models.limiter import LocalLimiter  # noqa: E402
 from deepphy.prompts import PastAttempt, PastStep, PromptFormat, build_messages  # noqa: E402
 from deepphy.protocol import LocalEnv, MemoryArtifacts, run_episode  # noqa: E402
-from deepphy.runner import evaluate, resolve  # noqa: E402
+from deepphy.plan import plan  # noqa: E402
+from deepphy.runner import evaluate  # noqa: E402
 from deepphy.runs.store import ATTEMPTS, CONFIG, RunDirError, RunStore, read_records  # noqa: E402
-from deepphy.suite import read_manifest  # noqa: E402
+from deepphy.runs.manifest import read_manifest  # noqa: E402
 from deepphy.testing.model_server import ServerConfig, ServerThread  # noqa: E402
 from agent_support import probe_of  # noqa: E402
 from deepphy.agents import MockModel  # noqa: E402
@@ -76,10 +77,10 @@ def agent_config(spec: AgentSpec, **fields) -> RunConfig:
 
 def play(config: RunConfig, client, runs: int = 1) -> list:
     """Every episode of `config`, in this process, through the attempt protocol."""
-    spec, tasks, k_max = resolve(config)
-    env_cls = spec.load()
-    env = LocalEnv(env_cls(env_cls.Options(**config.env_options)))
-    prompt, artifacts = spec.load_prompt(), MemoryArtifacts()
+    the_plan = plan(config)
+    spec, tasks, k_max = the_plan.spec, the_plan.tasks, the_plan.k_max
+    env = LocalEnv(the_plan.make_env())
+    prompt, artifacts = the_plan.prompt(), MemoryArtifacts()
 
     async def all_episodes():
         try:

@@ -351,7 +351,7 @@ def test_runs_that_appear_later_join(run_dir, tmp_path):
 def test_runs_nested_below_a_directory_are_found(run_dir, tmp_path):
     """runs/<model>/<env>/ and the like: run directories two folders down are found; a run
     directory's own folders and hidden folders are not searched."""
-    from deepphy.dashboard.source import runs_in
+    from deepphy.runs.discovery import runs_in
 
     copy_run(run_dir, tmp_path / "runs" / "gpt" / "iphyre", lines=3)
     copy_run(run_dir, tmp_path / "runs" / "mock" / "phyre-like", lines=3)

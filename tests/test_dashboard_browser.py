@@ -20,7 +20,7 @@ import pytest
 
 from dashboard_support import IPHYRE_TASKS, append, copy_run, mock_run, synthetic_run
 from deepphy.config import RunConfig, RuntimeOptions
-from deepphy.dashboard.source import run_id
+from deepphy.runs.discovery import dir_id
 from deepphy.metrics.report import report_of, table
 from deepphy.runner import evaluate
 from deepphy.runs.status import RunStatus, write_status
@@ -185,7 +185,7 @@ def test_episode_view_shows_prompts_replies_and_frames(runs, serve, open_page, s
     records = read_records(runs[0])
     later = next(r for r in records if r.attempt >= 2)
     # the first run given is shown (runs load side by side; the page keeps the given order)
-    page.click(f'#grid .cell[data-run="{run_id(runs[0].resolve())}"][data-task="{later.task}"][data-r="{later.run}"]')
+    page.click(f'#grid .cell[data-run="{dir_id(runs[0].resolve())}"][data-task="{later.task}"][data-r="{later.run}"]')
     page.wait_for_selector("#episode .attempt")
     attempts = [r for r in records if (r.task, r.run) == (later.task, later.run)]
     assert page.eval_on_selector_all("#episode details.attempt", "ds => ds.length") == len(attempts)
@@ -210,7 +210,7 @@ def test_episode_view_shows_prompts_replies_and_frames(runs, serve, open_page, s
 
     # a link to an episode opens it; a WM run's episode shows its predictions
     wm = read_records(runs[1])
-    page = open_page(f"{server.url}#run={run_id(runs[1].resolve())}&task={wm[0].task}&r={wm[0].run}")
+    page = open_page(f"{server.url}#run={dir_id(runs[1].resolve())}&task={wm[0].task}&r={wm[0].run}")
     page.wait_for_selector("#episode .attempt")
     mine = [r for r in wm if (r.task, r.run) == (wm[0].task, wm[0].run)]
     predictions = page.eval_on_selector_all("#episode pre.prediction", "ps => ps.map(p => p.textContent)")
@@ -455,7 +455,7 @@ def test_episode_browser_filters_searches_and_steps_through_the_list(runs, serve
     bars = page.eval_on_selector_all("#episode .tl-bar", "bs => bs.map(b => Number(b.dataset.seconds))")
     assert bars == [s for a in sorted(episodes[(task, r)], key=lambda a: a.attempt) for s in a.timing.decision_s]
     # the other run of the task beside it
-    page.select_option("#episode-compare", f"{run_id(run_dir.resolve())}|{1 - r}")
+    page.select_option("#episode-compare", f"{dir_id(run_dir.resolve())}|{1 - r}")
     page.wait_for_selector("#episode .compare-grid .side >> nth=1")
     assert page.text_content("#episode .compare-grid .side:nth-child(2) .side-title").endswith(f"run {1 - r}")
     # an image, enlarged on a click

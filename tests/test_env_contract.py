@@ -78,7 +78,8 @@ def test_an_attempt_that_raises_is_isolated_logged_and_retried_on_resume(ray_clu
 
     from deepphy.cli import run_summary
     from deepphy.config import RunConfig, RuntimeOptions
-    from deepphy.runner import episodes_done, evaluate
+    from deepphy.plan import plan
+    from deepphy.runner import evaluate
     from deepphy.runs.store import read_records
 
     register(Explodes.spec)
@@ -93,7 +94,9 @@ def test_an_attempt_that_raises_is_isolated_logged_and_retried_on_resume(ray_clu
         assert {r.task for r in read_records(run_dir)} == {f"flag-{f:02d}" for f in range(2, 12)} - {"flag-05"}
         # counted as the records were written, and what the directory says
         assert outcome.new_records == len(read_records(run_dir))
-        assert (outcome.episodes_done, outcome.episodes_total) == episodes_done(config, run_dir)
+        the_plan = plan(config)
+        assert (outcome.episodes_done, outcome.episodes_total) == (the_plan.episodes_done(read_records(run_dir)),
+                                                                   the_plan.episodes_total)
         errors = [json.loads(line) for line in (run_dir / "errors.jsonl").read_text().splitlines()]
         assert [(e["task"], e["attempt"]) for e in errors] == [("flag-05", 1)]
         assert "the cart left the rail" in errors[0]["message"] and "Traceback" in errors[0]["traceback"]

@@ -22,7 +22,7 @@ def test_decisions_of_one_loop_turn_are_one_call_and_each_keeps_its_own_outcome(
 
     trigger = tmp_path / "explode"
     trigger.touch()  # flag-05 raises at its second push
-    worker = make_env_worker(Explodes.spec, {"explode_if_exists": str(trigger)}, num_cpus=0)
+    worker = make_env_worker(Explodes.spec, Explodes.Options(explode_if_exists=str(trigger)), num_cpus=0)
     tasks = {t.id: t for t in Explodes.tasks(Explodes.Options())}
     push = PushAction(force=1)
 
@@ -90,15 +90,14 @@ def test_a_batch_of_answers_comes_back_inside_the_reply_not_through_the_object_s
 
     from deepphy.actors.env_worker import make_env_worker
     from deepphy.config import RunConfig
-    from deepphy.envs import get_spec
     from deepphy.local_ray import INLINE_RESULT_MAX
-    from deepphy.runner import resolve
+    from deepphy.plan import plan
 
-    spec, tasks, _ = resolve(RunConfig(env="iphyre", model="mock", runs=1, limit=8))
-    cls = get_spec("iphyre").load()
-    worker = make_env_worker(spec, {}, num_cpus=0)
+    the_plan = plan(RunConfig(env="iphyre", model="mock", runs=1, limit=8))
+    tasks = the_plan.tasks
+    worker = make_env_worker(the_plan.spec, the_plan.options, num_cpus=0)
     try:
-        plans = [cls(cls.Options()).reset(t).action_space.parse("[]") for t in tasks]
+        plans = [the_plan.make_env().reset(t).action_space.parse("[]") for t in tasks]
         ref = worker.step_batch.remote([(f"e{i}", plan, t) for i, (plan, t) in enumerate(zip(plans, tasks))])
         answers = ray.get(ref, timeout=RAY_TIMEOUT_S)
         assert all(type(a).__name__ == "StepResult" for a in answers), answers

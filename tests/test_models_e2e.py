@@ -14,7 +14,8 @@ import yaml
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.metrics.report import build_report, render_text
 from deepphy.testing.model_server import PROSE_REPLY, ServerConfig, ServerThread
-from deepphy.runner import evaluate, resolve
+from deepphy.plan import plan
+from deepphy.runner import evaluate
 from deepphy.runs.store import read_records
 
 # Ray workers inherit the environment of the process that starts Ray (the session
@@ -85,8 +86,8 @@ def assert_one_record_per_attempt(path) -> list:
 
 
 def report_of(config, path):
-    _, tasks, k = resolve(config)
-    return build_report(config, tasks, read_records(path), k)
+    the_plan = plan(config)
+    return build_report(config, the_plan.tasks, read_records(path), the_plan.k_max)
 
 
 def test_faulty_server_run_equals_the_mock_run(server, models_file, mock_run, tmp_path, request):

@@ -166,13 +166,14 @@ def test_attempts_do_not_wait_for_the_metrics_actor_but_it_must_start(baseline, 
     it asks for a resource no node has) stops the run within the step timeout with one line,
     after recording attempts meanwhile; the resume finishes the run as if nothing happened."""
     import deepphy.actors.metrics_actor as metrics_actor
-    from deepphy.runner import ClusterUnavailable
+    import deepphy.runner as runner
+    from deepphy.ray_connect import ClusterUnavailable
 
     def never_placed(total, k_max, max_steps=1, *, name=None, run=None, started=None):
         return metrics_actor.MetricsActor.options(num_cpus=0, name=name, resources={"nowhere": 1}).remote(
             total, k_max, max_steps, run, started)
 
-    monkeypatch.setattr(metrics_actor, "make_metrics_actor", never_placed)
+    monkeypatch.setattr(runner, "make_metrics_actor", never_placed)
     # 15 s: the step timeout bounds the workers' start too, which a loaded machine makes slow
     stream = io.StringIO()
     with pytest.raises(ClusterUnavailable, match="the metrics actor did not start within 15 s"):
@@ -195,7 +196,7 @@ def test_workers_that_die_while_starting_stop_the_run_with_one_line_and_it_resum
     import ray
 
     import deepphy.runner as runner
-    from deepphy.runner import ClusterUnavailable
+    from deepphy.ray_connect import ClusterUnavailable
 
     made = runner.make_env_workers
 
@@ -363,7 +364,7 @@ def test_a_run_does_not_package_the_working_directory_even_if_ray_was_imported_f
     script importing deepphy.runner imports Ray first). A user's explicit setting stands."""
     from ray._private import ray_constants
 
-    from deepphy.runner import quiet_environment
+    from deepphy.ray_env import quiet_environment
 
     if setting is None:
         monkeypatch.delenv("RAY_ENABLE_UV_RUN_RUNTIME_ENV", raising=False)

@@ -10,16 +10,16 @@ from deepphy.chat import image_digest
 from deepphy.config import RunConfig
 from deepphy.protocol import LocalEnv, MemoryArtifacts, past_attempt, run_attempt, run_episode
 from deepphy.prompts import build_messages, prompt_as_json, prompt_digest
-from deepphy.runner import resolve
+from deepphy.plan import plan
 
 
 def _episode(config: RunConfig, task_id: str):
-    spec, tasks, k_max = resolve(config)
-    task = next(t for t in tasks if t.id == task_id)
-    cls = spec.load()
-    env = LocalEnv(cls(cls.Options(**config.env_options)))
+    the_plan = plan(config)
+    spec = the_plan.spec
+    task = next(t for t in the_plan.tasks if t.id == task_id)
+    env = LocalEnv(the_plan.make_env())
     artifacts = MemoryArtifacts()
-    records = asyncio.run(run_episode(spec, spec.load_prompt(), config, task, 0, k_max, env,
+    records = asyncio.run(run_episode(spec, the_plan.prompt(), config, task, 0, the_plan.k_max, env,
                                       make_agent(config.model), artifacts))
     return spec, task, env, artifacts, records
 

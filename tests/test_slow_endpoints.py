@@ -85,13 +85,14 @@ def test_a_silent_endpoint_holds_an_episode_minutes_and_the_progress_line_says_s
     back-off), and the progress line is never silent about it for longer than SLOW_ANSWER_S
     (a re-run's new request is named once it is that old; the re-queue itself is a warning line)."""
     from deepphy.protocol import LocalEnv
-    from deepphy.runner import resolve
+    from deepphy.plan import plan
     from deepphy.runs.store import RunStore
     from deepphy.scheduler import MODEL_REQUEUES, Scheduler
 
     config = RunConfig(env="iphyre", model="slow", runs=1, tasks=["support"])
-    spec, tasks, k_max = resolve(config)
-    env = LocalEnv(spec.load()(spec.load().Options()))  # in this loop: no thread for the clock to outrun
+    the_plan = plan(config)
+    spec, tasks, k_max = the_plan.spec, the_plan.tasks, the_plan.k_max
+    env = LocalEnv(the_plan.make_env())  # in this loop: no thread for the clock to outrun
     with virtual_time() as loop:
         server = MockServer(ServerConfig(faults={"rate": 1.0, "kinds": ["hang"], "hang_s": 3600}))
 
@@ -99,8 +100,7 @@ def test_a_silent_endpoint_holds_an_episode_minutes_and_the_progress_line_says_s
             port = await server.start("127.0.0.1", 0)
             client = client_from_config(endpoint(port))
             store = RunStore.create_or_resume(tmp_path / "run", config)
-            scheduler = Scheduler(config, RuntimeOptions(progress=False), spec, tasks, store, [], client, None, k_max,
-                                  local_env=env)
+            scheduler = Scheduler(the_plan, RuntimeOptions(progress=False), store, [], client, None, local_env=env)
             lines = []
 
             async def watch(t):

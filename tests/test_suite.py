@@ -18,7 +18,8 @@ from deepphy.config import RuntimeOptions
 from deepphy.metrics.report import departures, report_of
 from deepphy.runner import evaluate
 from deepphy.runs.store import ATTEMPTS, read_config, read_records
-from deepphy.suite import MANIFEST, Suite, SuiteError, cells, load_suite, plan, read_manifest, run_suite
+from deepphy.runs.manifest import MANIFEST, read_manifest
+from deepphy.suite import Suite, SuiteError, cells, checked_cells, load_suite, run_suite
 
 SMALL = {
     "name": "small",
@@ -66,10 +67,10 @@ SPANS: dict[str, tuple[float, float]] = {}  # cell -> (start, end) of its evalua
 def done(ray_cluster, suite_file, tmp_path_factory):
     """The small suite, run once without interruption in the session's Ray runtime (each
     cell's evaluate timed, in SPANS)."""
-    import deepphy.runner
+    import deepphy.suite
 
     root = tmp_path_factory.mktemp("suite") / "root"
-    evaluate = deepphy.runner.evaluate
+    evaluate = deepphy.suite.evaluate
 
     def timed(config, out, *args, **kw):
         start = time.monotonic()
@@ -79,7 +80,7 @@ def done(ray_cluster, suite_file, tmp_path_factory):
             SPANS[str(Path(out).relative_to(root))] = (start, time.monotonic())
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(deepphy.runner, "evaluate", timed)
+        mp.setattr(deepphy.suite, "evaluate", timed)
         outcomes = run_suite(load_suite(str(suite_file)), root, RUNTIME)
     assert [(o.done, o.total) for o in outcomes] == [(2, 2)] * 2 + [(2, 2)] * 2
     return root
@@ -115,9 +116,9 @@ def test_leaderboard_of_the_root_has_a_row_per_setting_and_a_group_per_environme
 
 
 def test_running_a_complete_suite_again_adds_nothing_and_starts_no_ray(done, monkeypatch):
-    import deepphy.runner
+    import deepphy.suite
 
-    monkeypatch.setattr(deepphy.runner, "ensure_ray", lambda *a, **k: pytest.fail("Ray was started"))
+    monkeypatch.setattr(deepphy.suite, "ensure_ray", lambda *a, **k: pytest.fail("Ray was started"))
     outcomes = run_suite(Suite.model_validate(SMALL), done, RUNTIME)
     assert [o.new_records for o in outcomes] == [0, 0, 0, 0]
 
@@ -125,16 +126,16 @@ def test_running_a_complete_suite_again_adds_nothing_and_starts_no_ray(done, mon
 def test_a_changed_suite_is_refused_and_an_added_model_extends_it(done, tmp_path):
     before = (done / MANIFEST).read_bytes()
     with pytest.raises(SuiteError, match="holds a different suite .cell mock/iphyre/vla has another config"):
-        plan(Suite.model_validate({**SMALL, "runs": 2}), done, None, None)
+        checked_cells(Suite.model_validate({**SMALL, "runs": 2}), done, None, None)
     with pytest.raises(SuiteError, match="2 of its cells .mock/phyre/vla, mock/phyre/wm. are not in this suite"):
-        plan(Suite.model_validate({**SMALL, "envs": SMALL["envs"][:1]}), done, None, None)
-    extended = plan(Suite.model_validate(SMALL), done, ["mock", "mock-uniform"], None)
+        checked_cells(Suite.model_validate({**SMALL, "envs": SMALL["envs"][:1]}), done, None, None)
+    extended = checked_cells(Suite.model_validate(SMALL), done, ["mock", "mock-uniform"], None)
     assert len(extended) == 8
     assert (done / MANIFEST).read_bytes() == before  # planning writes nothing
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")
     with pytest.raises(SuiteError, match="not empty and holds no suite"):
-        plan(Suite.model_validate(SMALL), tmp_path / "other", None, None)
+        checked_cells(Suite.model_validate(SMALL), tmp_path / "other", None, None)
 
 
 def test_cli_errors_are_one_line_before_anything_is_written(suite_file, tmp_path, capsys):
@@ -234,22 +235,22 @@ def test_cells_of_one_endpoint_share_its_limiter_and_the_view_shows_its_use(ray_
 
 def test_a_failing_cell_stops_the_suite_with_its_error_and_the_same_command_resumes(ray_cluster, tmp_path,
                                                                                      monkeypatch):
-    import deepphy.runner
+    import deepphy.suite
 
     suite = Suite.model_validate({**SMALL, "envs": SMALL["envs"][:1]})
-    evaluate = deepphy.runner.evaluate
+    evaluate = deepphy.suite.evaluate
 
     def failing(config, out, *args, **kw):
         if config.format.value == "wm":
             raise RuntimeError("disk on fire")
         return evaluate(config, out, *args, **kw)
 
-    monkeypatch.setattr(deepphy.runner, "evaluate", failing)
+    monkeypatch.setattr(deepphy.suite, "evaluate", failing)
     stream = io.StringIO()
     with pytest.raises(RuntimeError, match="disk on fire"):
         run_suite(suite, tmp_path, RUNTIME.model_copy(update={"progress": True}), stream=stream)
     assert "cell mock/iphyre/wm failed: disk on fire" in stream.getvalue()
-    monkeypatch.setattr(deepphy.runner, "evaluate", evaluate)
+    monkeypatch.setattr(deepphy.suite, "evaluate", evaluate)
     assert [(o.done, o.total) for o in run_suite(suite, tmp_path, RUNTIME)] == [(2, 2), (2, 2)]
 
 

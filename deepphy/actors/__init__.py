@@ -15,7 +15,7 @@ class remote_class:  # noqa: N801 - stands for the actor class it makes
 
     def get(self) -> Any:
         if self._made is None:
-            import ray
+            import ray  # at first use: importing an actor's module imports no Ray
 
             self._made = ray.remote(self.impl)
         return self._made

@@ -19,11 +19,11 @@ import asyncio
 import os
 import pickle
 import traceback
-from typing import Any, Sequence
+from typing import Sequence
 
 from deepphy.actors import remote_class
 from deepphy.allocator import keep_freed_memory
-from deepphy.envs import Action, EnvSpec, Environment, Observation, StepResult, Task
+from deepphy.envs import Action, EnvOptions, EnvSpec, Environment, Observation, StepResult, Task
 
 
 class LostEpisode(KeyError):
@@ -31,12 +31,12 @@ class LostEpisode(KeyError):
 
 
 class EnvWorkerImpl:
-    def __init__(self, spec: EnvSpec, options: dict[str, Any], log_path: str | None = None) -> None:
+    def __init__(self, spec: EnvSpec, options: EnvOptions, log_path: str | None = None) -> None:
         _redirect_output(log_path)  # library noise (XLA, numba, deprecations) goes to the run's log
         keep_freed_memory()  # attempts reuse their arrays' pages instead of faulting them in (deepphy/allocator.py)
         self.cls: type[Environment] = spec.load()
         self.batches_steps = self.cls.step_many.__func__ is not Environment.step_many.__func__  # type: ignore[attr-defined]
-        self.options = self.cls.Options(**options)
+        self.options = options  # validated by the driver's plan (deepphy.plan)
         self.live: dict[str, Environment] = {}
         self.idle: list[Environment] = []  # instances are reused: simulators are costly to build
         self.pending: list[tuple[str, Action, asyncio.Future]] = []
@@ -141,7 +141,7 @@ def _redirect_output(log_path: str | None) -> None:
     os.close(fd)
 
 
-def make_env_worker(spec: EnvSpec, options: dict[str, Any], *, name: str | None = None,
+def make_env_worker(spec: EnvSpec, options: EnvOptions, *, name: str | None = None,
                     resource: str | None = None, log_path: str | None = None, max_restarts: int = 5,
                     max_concurrency: int = 1000, num_cpus: float = 1.0):
     """An EnvWorker actor handle: one logical CPU (`num_cpus`: a suite's settings running

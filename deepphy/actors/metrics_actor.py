@@ -29,7 +29,7 @@ class MetricsImpl:
 
 def make_metrics_actor(episodes_total: int, max_attempts: int, max_steps: int = 1, *, name: str | None = None,
                        run: dict[str, Any] | None = None, started: float | None = None):
-    from deepphy.actors.placement import beside_driver
+    from deepphy.actors.placement import beside_driver  # imports Ray: a run in this process never comes here
 
     return MetricsActor.options(num_cpus=0, name=name, scheduling_strategy=beside_driver()).remote(
         episodes_total, max_attempts, max_steps, run, started)

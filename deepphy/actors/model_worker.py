@@ -6,6 +6,8 @@ from pathlib import Path
 from typing import Sequence
 
 from deepphy.actors import remote_class
+from deepphy.agent import AgentClient, Episode, declared
+from deepphy.agents import endpoint_config, make_agent
 from deepphy.config import AgentSpec
 from deepphy.envs import EnvSpec, register
 from deepphy.models import ModelRequest, ModelResponse
@@ -14,8 +16,7 @@ from deepphy.models import ModelRequest, ModelResponse
 class ModelWorkerImpl:
     def __init__(self, model: str, spec: EnvSpec | Sequence[EnvSpec], models_file: str | None = None,
                  agent: AgentSpec | None = None) -> None:
-        from deepphy.actors.rate_limiter import RayLimiter
-        from deepphy.agents import endpoint_config, make_agent
+        from deepphy.actors.rate_limiter import RayLimiter  # imports Ray: only a worker on Ray makes one
 
         # The run's environments, also those not of deepphy's own (MOCK samples their spaces; an
         # agent's structured action is written in their syntax). A suite's agent serves several.
@@ -23,8 +24,6 @@ class ModelWorkerImpl:
             register(one)
 
         if agent is not None:
-            from deepphy.agent import AgentClient
-
             # Every worker of the cluster consults each endpoint's one shared limiter actor.
             self.client = AgentClient(agent, models_file, limiter_for=lambda c: RayLimiter(c) if c.rate_limits.enabled
                                       else None)
@@ -38,8 +37,6 @@ class ModelWorkerImpl:
 
     async def end_episode(self, episode: tuple) -> None:
         """An agent's episode ended: its state is released (`deepphy.agent.Episode`)."""
-        from deepphy.agent import Episode
-
         self.client.end_episode(Episode(*episode))
 
     async def activity(self) -> dict[str, int]:
@@ -64,12 +61,10 @@ def make_model_worker(model: str, spec: EnvSpec | Sequence[EnvSpec], *, name: st
     """`max_concurrency`: requests handled at once (a run passes its episodes in flight).
     An agent that declares Ray resources (a GPU) gets them, wherever the cluster has them;
     any other worker is an I/O actor beside the driver that reserves nothing."""
-    from deepphy.actors.placement import beside_driver
+    from deepphy.actors.placement import beside_driver  # imports Ray: a run in this process never comes here
 
     options = {"num_cpus": 0, "scheduling_strategy": beside_driver()}
     if agent is not None:
-        from deepphy.agent import declared
-
         resources = declared(agent).resources
         if resources.requested:
             options = resources.actor_options()

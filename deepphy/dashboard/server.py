@@ -25,10 +25,14 @@ from typing import Any
 from aiohttp import web
 
 from deepphy import webguard
-from deepphy.dashboard.source import RunSource, is_run_dir, run_id, runs_in
-from deepphy.runs.store import IMAGES, RunDirError
+from deepphy.config import RuntimeOptions
+from deepphy.dashboard.source import RunSource
 from deepphy.metrics.leaderboard import LeaderboardError, as_dict, leaderboard, not_started
+from deepphy.metrics.report import setting
 from deepphy.play import replay
+from deepphy.ray_connect import ensure_ray
+from deepphy.runs.discovery import dir_id, is_run_dir, live_snapshots, runs_in
+from deepphy.runs.store import IMAGES, RunDirError
 
 log = logging.getLogger(__name__)
 
@@ -174,7 +178,7 @@ class Dashboard:
                     continue
                 self._add(source)  # its first view goes out with its first poll
                 known.add(path)
-            waiting = f"wait-{run_id(root)}"
+            waiting = f"wait-{dir_id(root)}"
             if found and waiting in self.views:
                 del self.views[waiting]
                 removed = True
@@ -209,25 +213,21 @@ class Dashboard:
 
     def _board_view(self, root: Path, started: set[Path], reports: dict[Path, dict[str, Any]]) -> dict[str, Any] | None:
         """The leaderboard of the runs below `root` (None while there is nothing to show)."""
-        from deepphy.suite import SuiteError
-
-        view = {"id": f"board-{run_id(root)}", "path": str(root), "name": root.name, "board": None, "error": None}
+        view = {"id": f"board-{dir_id(root)}", "path": str(root), "name": root.name, "board": None, "error": None}
         try:
             reports = {**reports, **not_started(root, started, self._not_started)}
             if not reports:
                 return None
             view["board"] = as_dict(leaderboard(list(reports.values()), [str(p) for p in reports]))
-        except (LeaderboardError, SuiteError) as e:
+        except (LeaderboardError, RunDirError) as e:
             view["error"] = str(e)
         return view
 
     async def _live_loop(self) -> None:
-        from deepphy.dashboard import live
-
-        await asyncio.to_thread(live.connect, self.address)
+        await asyncio.to_thread(ensure_ray, RuntimeOptions(address=self.address))
         while True:
             try:
-                snapshots = await asyncio.to_thread(live.live_snapshots)
+                snapshots = await asyncio.to_thread(live_snapshots)
                 await self._merge_live(snapshots)
             except Exception:  # noqa: BLE001 - a cluster hiccup: try again
                 log.exception("asking %s for live runs", self.address)
@@ -362,8 +362,6 @@ def sse(event: str, payload: Any) -> bytes:
 
 def live_only_view(ray_id: str, snap: dict[str, Any]) -> dict[str, Any]:
     """A live run whose directory this machine cannot read: the metrics actor's figures."""
-    from deepphy.metrics.report import setting
-
     config = snap.get("config") or {}
     label = setting({"model": config.get("model", "?"), "format": config.get("format", "?"),
                      "env_options": config.get("env_options", {}), "prompts": config.get("prompts", "before-parity")})

@@ -8,7 +8,6 @@ figures. Not thread-safe: the server calls every method from one worker thread.
 from __future__ import annotations
 
 import bisect
-import hashlib
 import re
 import time
 from dataclasses import dataclass
@@ -20,10 +19,12 @@ from pydantic import ValidationError
 from deepphy.metrics import figures as F
 from deepphy.config import is_human
 from deepphy.metrics.report import build_report, episodes_done, sample_size, setting, table, table_key
+from deepphy.plan import plan
+from deepphy.runs.discovery import dir_id
 from deepphy.runs.records import AttemptRecord
 from deepphy.runs.status import read_status, writer_holds_lock
 from deepphy.runs.store import (
-    ATTEMPTS, CONFIG, FRAMES, IMAGE_DIGEST, IMAGES, OLD_IMAGE_PLACEHOLDER, RunDirError, episode_prompts, inside,
+    ATTEMPTS, FRAMES, IMAGE_DIGEST, IMAGES, OLD_IMAGE_PLACEHOLDER, RunDirError, episode_prompts, inside,
     read_config, read_image, stored_image, stored_prompt_json,
 )
 
@@ -34,15 +35,6 @@ SCAN_CHUNK = 1024 * 1024  # looking for the end of a line
 MAX_LINE = 16 * 1024 * 1024  # a record is at most ~1 MB (replies are cut at 32,768 characters)
 RATE_WINDOW_S = 60.0  # attempts/s and ETA of a live run: over the records of the last minute
 GRID_PAGE = 200  # tasks per grid page
-RUN_SEARCH_DEPTH = 3  # how many folders below a directory given to the dashboard its runs are looked for
-
-
-def run_id(path: Path) -> str:
-    return hashlib.sha1(str(path).encode()).hexdigest()[:10]
-
-
-def is_run_dir(path: Path) -> bool:
-    return (path / CONFIG).is_file()
 
 
 class LogTail:
@@ -95,13 +87,11 @@ class Cell:
 
 class RunSource:
     def __init__(self, path: str | Path) -> None:
-        from deepphy.runner import resolve
-
         self.path = Path(path).resolve()
-        self.id = run_id(self.path)
-        self.config = read_config(self.path)
-        spec, self.tasks, self.k_max = resolve(self.config)
-        self.max_steps = spec.max_steps
+        self.id = dir_id(self.path)
+        self.plan = plan(read_config(self.path))
+        self.config, self.tasks, self.k_max = self.plan.config, self.plan.tasks, self.plan.k_max
+        self.max_steps = self.plan.spec.max_steps
         self.task_index = {t.id: i for i, t in enumerate(self.tasks)}
         self.records: list[AttemptRecord] = []
         self.episodes: dict[tuple[str, int], dict[int, AttemptRecord]] = {}
@@ -419,18 +409,3 @@ SEARCH_CHARS = 400  # of an episode's outcome and actions, searched by the page
 def reason_kind(reason: str) -> str:
     """An invalid reason with its numbers made N: alike reasons filter together."""
     return re.sub(r"-?\d+(?:\.\d+)?", "N", reason)[:120]
-
-
-def runs_in(path: Path, depth: int = RUN_SEARCH_DEPTH) -> list[Path]:
-    """The run directory `path`, or the run directories below it, at most `depth` folders
-    down (runs/<model>/<env>/ included). A run directory's own folders and hidden folders
-    are not searched."""
-    if is_run_dir(path):
-        return [path]
-    if depth == 0 or not path.is_dir():
-        return []
-    try:
-        children = sorted(p for p in path.iterdir() if p.is_dir() and not p.name.startswith("."))
-    except OSError:  # unreadable: nothing found here
-        return []
-    return [run for child in children for run in runs_in(child, depth - 1)]

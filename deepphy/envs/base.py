@@ -24,16 +24,13 @@ import re
 from abc import ABC, abstractmethod
 from collections import OrderedDict
 from enum import Enum
-from typing import TYPE_CHECKING, Any, Callable, ClassVar, NamedTuple, Sequence
+from typing import Any, Callable, ClassVar, NamedTuple, Sequence
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from deepphy.chat import Image
 from deepphy.envs.parsing import cut_reply
-
-if TYPE_CHECKING:
-    from deepphy.envs.spec import EnvSpec
 
 
 class Planning(str, Enum):
@@ -231,7 +228,9 @@ class EnvOptions(BaseModel):
 class Environment(ABC):
     """One live environment instance: runs attempts of any of its tasks, one at a time."""
 
-    spec: ClassVar["EnvSpec"]
+    # Its package's EnvSpec. Not annotated as one: the spec names this class by import path and
+    # imports this module (Planning), so the class knows its spec only by value.
+    spec: ClassVar[Any]
     Options: ClassVar[type[EnvOptions]] = EnvOptions
 
     def __init__(self, options: EnvOptions | None = None) -> None:

@@ -31,14 +31,13 @@ from typing import Any, Sequence
 from deepphy.chat import PromptFormat
 from deepphy.envs.base import SAFE_ID, Action, ActionSpace, EnvOptions, Environment, Observation, StepResult, Task
 from deepphy.envs.spec import EnvSpec
+from deepphy.prompts import build_messages
 from deepphy.seeding import seeded_rng
 
 def check_env(spec: EnvSpec, options: EnvOptions | None = None, *, tasks_checked: int = 2,
               fresh_process: bool = True) -> list[str]:
     """Every broken rule, as a sentence; [] when the environment keeps the contract.
     Resets and plays `tasks_checked` tasks (the first, the last, seeded picks between)."""
-    from deepphy.prompts import build_messages
-
     problems: list[str] = []
     env_cls = spec.load()
     if getattr(env_cls, "spec", None) != spec:

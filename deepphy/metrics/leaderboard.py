@@ -21,9 +21,11 @@ from typing import Any, Callable, Collection, Sequence
 
 from deepphy.envs import get_spec, specs
 from deepphy.metrics.report import (
-    LATEX_PREAMBLE, LATEX_WIDTH, _count, _pct, episodes_done, latex_escape, mixed_task_sets, options_of, paper_setting,
-    sample_size,
+    LATEX_PREAMBLE, LATEX_WIDTH, _count, _pct, build_report, episodes_done, latex_escape, mixed_task_sets, options_of,
+    paper_setting, sample_size,
 )
+from deepphy.plan import plan
+from deepphy.runs.manifest import has_manifest, read_manifest
 
 BEST = "*"  # after the best value of a column (text, Markdown, CSV); LaTeX sets it in bold
 UNRANKED = "\u2020"  # after a value left out of its column's ranking (other tasks, runs or attempts)
@@ -257,13 +259,9 @@ def not_started(root: Path, started: Collection[Path],
                 known: dict[str, dict[str, Any]] | None = None) -> dict[Path, dict[str, Any]]:
     """The cells a suite manifest in `root` lists whose run directory is not among `started`
     (resolved paths), each as the report of a run with no record yet: on the board they are
-    `unfinished 0/t`. {} where `root` holds no manifest; SuiteError for a bad one. `known`:
+    `unfinished 0/t`. {} where `root` holds no manifest; RunDirError for a bad one. `known`:
     such reports by their config's JSON, reused and added to (a live view asks every second)."""
-    from deepphy.metrics.report import build_report
-    from deepphy.runner import resolve
-    from deepphy.suite import MANIFEST, read_manifest
-
-    if not (root / MANIFEST).is_file():
+    if not has_manifest(root):
         return {}
     known = {} if known is None else known
     out = {}
@@ -273,8 +271,8 @@ def not_started(root: Path, started: Collection[Path],
             continue
         key = cell.config.model_dump_json()
         if key not in known:
-            _, tasks, k_max = resolve(cell.config)
-            known[key] = build_report(cell.config, tasks, [], k_max)
+            the_plan = plan(cell.config)
+            known[key] = build_report(cell.config, the_plan.tasks, [], the_plan.k_max)
         out[path] = known[key]
     return out
 

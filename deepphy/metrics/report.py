@@ -16,7 +16,9 @@ from typing import Any, Callable, Sequence
 from deepphy.config import RunConfig, is_human
 from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.metrics import figures as F
+from deepphy.plan import plan
 from deepphy.runs.records import AttemptRecord, episode_finished
+from deepphy.runs.store import check_records, read_config, read_records
 
 TEXT_WIDTH = 120  # characters: a wider text table is split into blocks of column groups
 LATEX_WIDTH = 80  # characters of plain cell text per LaTeX block (~ an article's \linewidth at 10 pt)
@@ -205,14 +207,10 @@ def sample_size(report: dict[str, Any], section: dict[str, Any] | None = None) -
 
 def report_of(run_dir) -> dict[str, Any]:
     """The report of one run directory, as `deepphy report --json` prints it."""
-    from deepphy.runner import resolve
-    from deepphy.runs.store import check_records, read_config, read_records
-
-    config = read_config(run_dir)
-    _, tasks, k_max = resolve(config)
+    the_plan = plan(read_config(run_dir))
     records = read_records(run_dir)
-    check_records(run_dir, records, k_max, frames=False)  # a duplicated or missing attempt would skew every figure
-    return build_report(config, tasks, records, k_max)
+    check_records(run_dir, records, the_plan.k_max, frames=False)  # a duplicated or missing attempt would skew every figure
+    return build_report(the_plan.config, the_plan.tasks, records, the_plan.k_max)
 
 
 def mixed_task_sets(reports: Sequence[dict[str, Any]]) -> str | None:

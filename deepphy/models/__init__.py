@@ -33,7 +33,7 @@ def model_config(name: str, models_file: str | Path | None = None) -> ModelConfi
 
 def client_from_config(config: ModelConfig, limiter: Limiter | None = None) -> ModelClient:
     """The client for a config; reads its key from the environment (MissingKey if unset)."""
-    from deepphy.models.providers import CLIENTS
+    from deepphy.models.providers import CLIENTS  # the HTTP clients (aiohttp): only when a client is built
 
     return CLIENTS[config.provider.value](config, limiter=limiter)
 

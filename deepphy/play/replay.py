@@ -25,6 +25,7 @@ from aiohttp import web
 
 from deepphy.envs import InvalidAction
 from deepphy.envs.base import FILM_FPS, Environment
+from deepphy.plan import plan
 from deepphy.play.background import off_loop
 from deepphy.play.human import remember
 from deepphy.runs.records import AttemptRecord, StepRecord
@@ -70,18 +71,15 @@ def film_attempt(run_dir: str | Path, task_id: str, run: int, attempt: int) -> F
     """Replay attempt `attempt` of `task_id` in repetition `run` of a run directory.
     KeyError if the run directory holds no such attempt, or its task is not the run's;
     RunDirError if the directory cannot be read."""
-    from deepphy.runner import resolve
-
     config = read_config(run_dir)
     record = next((r for r in read_records(run_dir) if r.key == (task_id, run, attempt)), None)
     if record is None:
         raise KeyError(f"no attempt {attempt} of {task_id} run {run} in {run_dir}")
-    spec, tasks, _ = resolve(config)
-    task = next((t for t in tasks if t.id == task_id), None)
+    the_plan = plan(config)
+    task = next((t for t in the_plan.tasks if t.id == task_id), None)
     if task is None:  # a record the run could not have made (edited, or copied from another run)
         raise KeyError(f"the record's task {task_id} is not one of this run's {config.env} tasks")
-    env_cls = spec.load()
-    env = env_cls(env_cls.Options(**config.env_options))
+    env = the_plan.make_env()
     observation = env.reset(task)
     film = Film(run_dir, record)
     film.add(observation.images[0].to_array(), "before the first decision")
@@ -109,7 +107,7 @@ def film_attempt(run_dir: str | Path, task_id: str, run: int, attempt: int) -> F
         if observation is not None:
             film.add(observation.images[0].to_array(), f"after decision {step.step}: the next observation")
     if not film.filmed:
-        film.note = film.note or f"{spec.title} does not film its steps: these are the key frames of each decision"
+        film.note = film.note or f"{the_plan.spec.title} does not film its steps: these are the key frames of each decision"
     return film
 
 

@@ -18,11 +18,11 @@ from typing import Any, Callable
 from aiohttp import web
 
 from deepphy import webguard
-from deepphy.dashboard.source import run_id
 from deepphy.envs import InvalidAction
 from deepphy.play import replay
 from deepphy.play.human import MAX_ANSWER_CHARS, StaleDecision
 from deepphy.play.session import PlaySession
+from deepphy.runs.discovery import dir_id
 
 STATIC = Path(__file__).parent / "static"
 HEARTBEAT_S = 15.0
@@ -36,7 +36,7 @@ class PlayServer:
         self.session = session
         self.desk = session.desk
         self.token = token
-        self.run_id = run_id(session.path)
+        self.run_id = dir_id(session.path)
 
     # -- pages and state ------------------------------------------------------------------
 

@@ -16,10 +16,12 @@ from typing import Any, Callable
 
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs import Action, Environment, Observation, StepResult, Task
+from deepphy.plan import plan
 from deepphy.play.background import off_loop
 from deepphy.play.human import Desk, HumanModel, Journal
 from deepphy.runs.records import AttemptRecord, AttemptSummary, episode_finished
 from deepphy.runs.store import RunStore, read_records
+from deepphy.scheduler import Scheduler
 
 DECISION_TIMEOUT_S = 30 * 24 * 3600.0  # a person may leave a decision open for days (the page can be closed)
 RECENT_SHOWN = 30  # attempts listed on the page (newest first), each with its replay once its task is over
@@ -69,10 +71,8 @@ class PlaySession:
     replays only once the task's episode is over."""
 
     def __init__(self, config: RunConfig, out: str | Path) -> None:
-        from deepphy.runner import resolve
-
-        self.config = config
-        self.spec, self.tasks, self.k_max = resolve(config)
+        self.plan = plan(config)
+        self.config, self.spec, self.tasks, self.k_max = config, self.plan.spec, self.plan.tasks, self.plan.k_max
         self.task_index = {t.id: i for i, t in enumerate(self.tasks)}
         self.store = PlayStore.create_or_resume(out, config)
         self.path = self.store.path.resolve()
@@ -109,9 +109,7 @@ class PlaySession:
         """The environment's one-time preparation (compiling kernels), started once: after
         the first observation, so that it runs while the person decides; steps wait for it."""
         if self.warming is None:
-            env_cls = self.spec.load()
-            options = env_cls.Options(**self.config.env_options)
-            self.warming = asyncio.ensure_future(off_loop(env_cls.warm_up, options, self.tasks))
+            self.warming = asyncio.ensure_future(off_loop(self.spec.load().warm_up, self.plan.options, self.tasks))
         return self.warming
 
     def set_busy(self, busy: bool) -> None:
@@ -195,14 +193,10 @@ class PlaySession:
 
     async def play(self) -> None:
         """Every unfinished episode, one at a time, until all are done."""
-        from deepphy.scheduler import Scheduler
-
         try:
-            env_cls = self.spec.load()
-            env = await off_loop(env_cls, env_cls.Options(**self.config.env_options))
+            env = await off_loop(self.plan.make_env)
             runtime = RuntimeOptions(max_in_flight=1, progress=False, model_timeout_s=DECISION_TIMEOUT_S)
-            scheduler = Scheduler(self.config, runtime, self.spec, self.tasks, self.store, [],
-                                  HumanModel(self.desk, self.journal), None, self.k_max,
+            scheduler = Scheduler(self.plan, runtime, self.store, [], HumanModel(self.desk, self.journal), None,
                                   local_env=PlayEnv(env, self))
             await scheduler.run(self.existing)
             self.existing = []

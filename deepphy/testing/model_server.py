@@ -49,11 +49,14 @@ from __future__ import annotations
 import argparse
 import asyncio
 import base64
+import ctypes
 import hashlib
 import json
 import os
 import re
 import secrets
+import signal
+import subprocess
 import sys
 import threading
 import time
@@ -670,7 +673,7 @@ class MockServer:
         if fault == "prose":
             text = PROSE_REPLY
         else:
-            from deepphy.agents import mock_text
+            from deepphy.agents import mock_text  # the environments' baselines: only a MOCK fault needs them
 
             text = mock_text(ctx)
         if fault == "drip":
@@ -744,8 +747,6 @@ def spawn(*args: str, timeout_s: float = 60.0):
     """Start `python -m deepphy.testing.model_server --port 0 ARGS` in a subprocess.
     Returns (Popen, base URL); the caller terminates it. On Linux the server also ends when
     the thread that spawned it does (the caller killed, say), so none is left behind."""
-    import subprocess
-
     proc = subprocess.Popen(
         [sys.executable, "-m", "deepphy.testing.model_server", "--port", "0", *args],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
@@ -765,9 +766,6 @@ def spawn(*args: str, timeout_s: float = 60.0):
 
 def _end_with_parent() -> None:
     """In the child, before exec: SIGTERM when the parent (thread) ends (prctl PR_SET_PDEATHSIG)."""
-    import ctypes
-    import signal
-
     ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)
 
 

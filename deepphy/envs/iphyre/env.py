@@ -57,7 +57,7 @@ class IPhyreEnv(Environment):
 
     @classmethod
     def tasks(cls, options) -> list[Task]:
-        from iphyre.games import GAMES
+        from iphyre.games import GAMES  # the simulator's package: loaded when tasks are asked for
 
         return [Task(env=SPEC.name, id=g, group=GROUPS[i // 10], params={"state_text": options.state_text})
                 for i, g in enumerate(GAMES)]
@@ -156,7 +156,7 @@ class IPhyreEnv(Environment):
 
     def render(self, labels: bool = False) -> np.ndarray:
         """The live scene as RGB, 600x600, y down as in iphyre."""
-        import pymunk
+        import pymunk  # the simulator's physics: loaded when a scene is drawn
 
         sim = self._sim
         img = np.full((sim.HEIGHT, sim.WIDTH, 3), 255, np.uint8)
@@ -189,7 +189,7 @@ class IPhyreEnv(Environment):
 
 
 def _fresh_sim(game: str):
-    from iphyre.simulator import IPHYRE
+    from iphyre.simulator import IPHYRE  # the simulator: loaded when a task is played
 
     sim = IPHYRE(game)
     sim.reset()

@@ -92,7 +92,7 @@ class KinetixEnv(Environment):
     def warm_up(cls, options: EnvOptions, tasks: Sequence[Task]) -> None:
         """Compile the decision function of every level size these tasks use (seconds each;
         the persistent JAX cache makes later processes faster)."""
-        from deepphy.envs.kinetix import sim
+        from deepphy.envs.kinetix import sim  # JAX: loaded when a task is played, not when tasks are listed
 
         first_of_size: dict[str, Task] = {}
         for task in tasks:
@@ -104,7 +104,7 @@ class KinetixEnv(Environment):
     # -- the contract ---------------------------------------------------------------
 
     def reset(self, task: Task) -> Observation:
-        from deepphy.envs.kinetix import sim
+        from deepphy.envs.kinetix import sim  # JAX: loaded when a task is played, not when tasks are listed
 
         self._task = task
         self._level = sim.load_level(task.params["level"])
@@ -121,7 +121,7 @@ class KinetixEnv(Environment):
     def step_many(cls, envs: Sequence[Environment], actions: Sequence[Action]) -> list[StepResult]:
         """Step several episodes: those of the same level size go through the size's one compiled
         batch function (`sim.BATCH` per call), so a result never depends on the company."""
-        from deepphy.envs.kinetix import sim
+        from deepphy.envs.kinetix import sim  # JAX: loaded when a task is played, not when tasks are listed
 
         results: list[StepResult | None] = [None] * len(envs)
         groups: dict[Any, list[int]] = {}
@@ -139,7 +139,7 @@ class KinetixEnv(Environment):
     def film(self, action: Action) -> tuple[StepResult, list[Frame]]:
         """The step (the record's program), and pictures of its env steps from a program that
         also returns the states on the way (it may round differently in the last bits)."""
-        from deepphy.envs.kinetix import sim
+        from deepphy.envs.kinetix import sim  # JAX: loaded when a task is played, not when tasks are listed
 
         assert self._controls is not None and self._state is not None, "reset() first"
         before, t0 = self._state, self._decision * SECONDS_PER_DECISION

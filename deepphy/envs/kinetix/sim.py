@@ -83,7 +83,7 @@ def quiet_xla_log() -> None:
     os.environ["TF_CPP_MIN_LOG_LEVEL"] = "3"
     if "jaxlib" in sys.modules:  # imported before deepphy's Kinetix (by the user's own code)
         try:
-            from jax._src.lib import utils
+            from jax._src.lib import utils  # loaded already (the check above)
 
             utils.absl_set_min_log_level(3)
         except (ImportError, AttributeError):  # another jaxlib: its log stays as it is
@@ -106,7 +106,7 @@ def configure_jax() -> None:
     with _lock:
         if _configured:
             return
-        import jax
+        import jax  # after quiet_xla_log(): jaxlib reads its log level as it loads
 
         if not os.environ.get("JAX_COMPILATION_CACHE_DIR"):
             path = cache_root() / "jax"
@@ -167,6 +167,7 @@ def load_level(name: str) -> Level:
 
 
 def _convert(name: str) -> Level:
+    # JAX and kinetix after quiet_xla_log() (jaxlib reads its log level as it loads)
     import jax
     import jax.numpy as jnp
     from kinetix.util.saving import load_from_json_file
@@ -196,6 +197,7 @@ class Sim:
     """The compiled decision function for one level size (one StaticEnvParams)."""
 
     def __init__(self, static_params: Any, env_params: Any) -> None:
+        # JAX and kinetix after quiet_xla_log() (jaxlib reads its log level as it loads)
         import jax
         import jax.numpy as jnp
         from kinetix.environment.env import make_kinetix_env
@@ -246,7 +248,7 @@ class Sim:
 
     def decide(self, states: list[Any], actions: np.ndarray) -> list[DecisionOut]:
         """Run one decision for each (state, 6-vector action), `BATCH` episodes per call."""
-        import jax
+        import jax  # loaded by __init__, after quiet_xla_log()
 
         assert len(states) == len(actions)
         outs: list[DecisionOut] = []
@@ -277,7 +279,7 @@ class Sim:
         """The states after each env step of one decision, for watching it (`BATCH` lanes, as
         `decide`). Not the record's program: its states may differ from `decide`'s in the
         last bits."""
-        import jax
+        import jax  # loaded by __init__, after quiet_xla_log()
 
         batch = jax.tree.map(lambda x: np.stack([x] * BATCH), state)
         states = jax.device_get(self._path(batch, np.repeat(np.asarray(action, np.int32)[None], BATCH, axis=0),

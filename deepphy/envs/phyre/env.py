@@ -191,7 +191,7 @@ class PhyreEnv(Environment):
 
 def draw_grid(img: np.ndarray, n: int) -> np.ndarray:
     """Number the n x n cells 1..n^2 row by row from the top-left; mark each cell's centre."""
-    import cv2
+    import cv2  # OpenCV: only where the grid or axes are drawn
 
     size = img.shape[0]
     cell = size / n
@@ -211,7 +211,7 @@ def draw_grid(img: np.ndarray, n: int) -> np.ndarray:
 
 def draw_axes(img: np.ndarray, ticks: int = 10) -> np.ndarray:
     """Lines at X, Y = 0.1 .. 0.9 (PHYRE's action units: px = value * 255, y up), labelled."""
-    import cv2
+    import cv2  # OpenCV: only where the grid or axes are drawn
 
     size = img.shape[0]
     px = size / SCENE

@@ -303,7 +303,7 @@ def _film(system) -> list[Frame]:
 
 
 def _first_hit(system) -> str | None:
-    from pooltool.ruleset.utils import get_id_of_first_ball_hit
+    from pooltool.ruleset.utils import get_id_of_first_ball_hit  # loaded by sim._pt(), numba's cache configured
 
     return get_id_of_first_ball_hit(system, cue="cue")
 

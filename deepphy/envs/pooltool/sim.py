@@ -3,9 +3,12 @@ numba cache, the physics engine, the warm-up break, racks, ball placement."""
 
 from __future__ import annotations
 
+import fcntl
 import functools
 import math
 import os
+import sys
+from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
@@ -28,8 +31,6 @@ def configure_numba_cache() -> Path:
     An explicit NUMBA_CACHE_DIR is respected. If numba is already imported, its config is
     re-read so the directory still takes effect for kernels compiled from now on.
     """
-    import sys
-
     if not os.environ.get("NUMBA_CACHE_DIR"):
         path = cache_root() / "numba"
         path.mkdir(parents=True, exist_ok=True)
@@ -42,7 +43,7 @@ def configure_numba_cache() -> Path:
 @functools.lru_cache(maxsize=None)
 def _pt():
     configure_numba_cache()
-    import pooltool
+    import pooltool  # after the numba cache is configured (and heavy: panda3d, numba)
 
     return pooltool
 
@@ -68,9 +69,6 @@ def warm_up() -> None:
     a second each). Later shots that reach a kernel the break did not use compile it once
     and add it to the same cache.
     """
-    import fcntl
-    from importlib.metadata import version
-
     pt = _pt()
     cache = configure_numba_cache()
     cache.mkdir(parents=True, exist_ok=True)
@@ -136,10 +134,10 @@ def _ball_params():
 
 def build_system(k: int | str, cue: tuple[float, float] | None = None):
     """A fresh pooltool System for rack `k` (balls inserted in the fixed order cue, 1..9)."""
-    import attrs
+    import attrs  # pooltool's own dependency: loaded with it
 
     pt = _pt()  # before any other pooltool import
-    from pooltool.objects.ball.sets import get_ballset
+    from pooltool.objects.ball.sets import get_ballset  # after _pt(): numba's cache configured
 
     table = pt.Table.default()
     params = attrs.asdict(_ball_params())
@@ -195,7 +193,7 @@ def _free_spot(system, centre: tuple[float, float], ignore: str) -> tuple[float,
 
 
 def _place(system, ball_id: str, xy: tuple[float, float]) -> None:
-    from pooltool.ruleset.utils import respot
+    from pooltool.ruleset.utils import respot  # pooltool: loaded by _pt() with numba's cache configured
 
     respot(system, ball_id, xy[0], xy[1])
     ball = system.balls[ball_id]
