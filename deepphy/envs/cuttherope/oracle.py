@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from deepphy.envs.cuttherope import constants as C
-from deepphy.envs.cuttherope.env import Attempt, act, apply
+from deepphy.envs.cuttherope.env import Attempt, CutTheRopeEnv, act, apply, invalid_reason
 from deepphy.envs.cuttherope.level import Level
 from deepphy.envs.cuttherope.sim import World, seconds_to_steps
 from deepphy.envs.cuttherope.space import CutAction, CutSpace, format_seconds
@@ -176,8 +176,6 @@ def _state_key(world: World) -> tuple:
 def replay(level: Level, texts: list[str]) -> dict:
     """Play `texts` through the environment (parse and step, as a model's replies would be):
     {"success", "stars", "actions", "t", "outcome"}."""
-    from deepphy.envs.cuttherope.env import CutTheRopeEnv
-
     env = CutTheRopeEnv()
     obs = env.start(level)
     result = None
@@ -270,8 +268,6 @@ def untimed(schedule: list[tuple[int, CutAction]]) -> list[str] | None:
 def play_timed(level: Level, schedule: list[tuple[int, CutAction]]) -> tuple[bool, int]:
     """(won, stars) when each action is taken at its step (in order), the world then running
     on as after the plan's last action (ACTION_INTERVAL, then at most RUN_ON_CAP)."""
-    from deepphy.envs.cuttherope.env import invalid_reason
-
     world = World.from_level(level)
     for step, action in schedule:
         world.advance(step - world.step_count)
