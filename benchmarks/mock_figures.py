@@ -73,7 +73,7 @@ def main() -> int:
         if done.returncode != 0:
             print(f"{name}: the run did not complete ({done.stderr.strip().splitlines()[-1:]}); run again to resume")
             continue
-        report = report_of(out)
+        report = report_of(out).to_json()
         print(f"{name} ({args.runs} runs, {sum(r['attempts'] for r in report['overall']['per_run'])} attempts, "
               f"{wall / 60:.1f} min wall): {summary(report)}", flush=True)
     return 0

@@ -441,7 +441,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     )
 
     reports = [report_of(run_dir) for run_dir in args.run_dirs]
-    envs = sorted({r["env"] for r in reports})
+    envs = sorted({r.env for r in reports})
     if len(envs) > 1:
         raise UserError(f"a report combines runs of one environment; got {', '.join(envs)}")
     render = (render_json if args.json else render_csv if args.csv else render_markdown if args.markdown
@@ -740,8 +740,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
     # a suite root (or any directory of runs) stands for its run directories
     by_dir = _board_reports(list(map(Path, args.run_dirs)), plain_runs=True)
     reports = [r for d, r in by_dir.items() if is_run_dir(d)]  # a cell not started is on the board only
-    for env in dict.fromkeys(r["env"] for r in reports):
-        note = mixed_task_sets([r for r in reports if r["env"] == env])
+    for env in dict.fromkeys(r.env for r in reports):
+        note = mixed_task_sets([r for r in reports if r.env == env])
         if note:
             print(f"deepphy: warning: {note}", file=sys.stderr)
     try:

@@ -35,9 +35,7 @@ from matplotlib.ticker import MaxNLocator
 
 from deepphy.envs import get_env_class, get_spec
 from deepphy.metrics.leaderboard import Leaderboard
-from deepphy.metrics.report import sample_size, setting
-
-Report = dict[str, Any]
+from deepphy.metrics.report import Report
 
 CHECKPOINTS = (1, 4, 7, 10)  # the attempts after which the cumulative bars show the gain
 ABLATION_OPTION = "annotate"  # the boolean environment option of the annotation ablation
@@ -56,18 +54,18 @@ ANNOTATION_PT = 7
 CHAR_EM = 0.6  # a character's width in ems (DejaVu Sans, on average): how long a label runs
 
 
-def _mean(report: Report, section: str | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
-    sec = report["overall"] if section is None else report["groups"][section]
-    return sec["mean"], sec["std"]
+def _mean(report: Report, section: str | None = None) -> tuple[Any, Any]:
+    sec = report.overall if section is None else report.groups[section]
+    return sec.mean, sec.std
 
 
 def _options_key(report: Report, *drop: str) -> str:
-    return json.dumps({k: v for k, v in sorted(report["env_options"].items()) if k not in drop})
+    return json.dumps({k: v for k, v in sorted(report.env_options.items()) if k not in drop})
 
 
 def labels(reports: Sequence[Report]) -> list[str]:
     """Each report's setting, numbered where two reports share one."""
-    names = [setting(r) for r in reports]
+    names = [r.setting for r in reports]
     repeated = {n for n, c in Counter(names).items() if c > 1}
     seen: Counter = Counter()
     out = []
@@ -79,7 +77,7 @@ def labels(reports: Sequence[Report]) -> list[str]:
 
 def sized(reports: Sequence[Report], sep: str = " ") -> list[str]:
     """Each report's label (`labels`) with its n: "mock VLA (n=40x3)"; `sep` before the n."""
-    return [f"{name}{sep}(n={sample_size(r)})" for name, r in zip(labels(reports), reports)]
+    return [f"{name}{sep}(n={r.sample_size()})" for name, r in zip(labels(reports), reports)]
 
 
 def _style(ax: Axes, grid_axis: str = "y") -> None:
@@ -156,8 +154,8 @@ def draw_cumulative_bars(ax: Axes, reports: Sequence[Report], checkpoints: Seque
     top = 0.0
     for i, r in enumerate(reports):
         m, s = _mean(r)
-        cps = [c for c in checkpoints if c <= r["max_attempts"]]
-        success = [m["success_at"][c - 1] for c in cps]
+        cps = [c for c in checkpoints if c <= r.max_attempts]
+        success = [m.success_at[c - 1] for c in cps]
         segments = [success[0]] + [b - a for a, b in zip(success, success[1:])]
         bottom = 0.0
         for j, (c, seg) in enumerate(zip(cps, segments)):
@@ -165,9 +163,9 @@ def draw_cumulative_bars(ax: Axes, reports: Sequence[Report], checkpoints: Seque
                    edgecolor="white", linewidth=0.5,
                    label=(f"attempt {c}" if j == 0 else f"attempts {cps[j - 1] + 1}-{c}") if i == 0 else None)
             bottom += seg
-        (low,), (high,) = _clipped([success[-1]], [s["success_at"][cps[-1] - 1] or 0])
+        (low,), (high,) = _clipped([success[-1]], [s.success_at[cps[-1] - 1] or 0])
         ax.errorbar(i, 100 * success[-1], yerr=[[100 * low], [100 * high]], color="black", capsize=3, linewidth=1)
-        avg = m["avg_attempts"]
+        avg = m.avg_attempts
         ax.annotate("-" if avg is None else f"{avg:.2f}", (i, 100 * (success[-1] + high)), xytext=(0, 3),
                     textcoords="offset points", ha="center", fontsize=ANNOTATION_PT)
         top = max(top, 100 * (success[-1] + high))
@@ -176,7 +174,7 @@ def draw_cumulative_bars(ax: Axes, reports: Sequence[Report], checkpoints: Seque
         drawn["segments"].append(segments)
         drawn["avg_attempts"].append(avg)
     _style(ax)
-    drawn["n"] = [sample_size(r) for r in reports]
+    drawn["n"] = [r.sample_size() for r in reports]
     _ticks(ax, range(len(reports)), sized(reports, "\n"))
     _slot_limits(ax, len(reports))
     ax.set_ylim(0, _percent_limits(top * 1.1))
@@ -193,19 +191,19 @@ def draw_success_by_attempt(ax: Axes, reports: Sequence[Report]) -> dict[str, An
     std over runs (band)."""
     drawn: dict[str, Any] = {"series": []}
     names = sized(reports)
-    k_max = max(r["max_attempts"] for r in reports)
+    k_max = max(r.max_attempts for r in reports)
     top = 0.0
     for i, r in enumerate(reports):
         m, s = _mean(r)
-        y, err = m["success_at"], [e or 0 for e in s["success_at"]]
+        y, err = m.success_at, [e or 0 for e in s.success_at]
         ks = list(range(1, len(y) + 1))
         color = COLORS[i % len(COLORS)]
         ax.fill_between(ks, [100 * max(0, a - e) for a, e in zip(y, err)], [100 * min(1, a + e) for a, e in zip(y, err)],
                         color=color, alpha=0.15, linewidth=0)
         ax.plot(ks, [100 * v for v in y], color=color, marker="o", markersize=2.5, label=names[i], clip_on=False)
         top = max([top] + [100 * (a + e) for a, e in zip(y, err)])
-        drawn["series"].append({"label": labels(reports)[i], "n": sample_size(r), "attempts": ks, "success": y,
-                                "std": s["success_at"]})
+        drawn["series"].append({"label": labels(reports)[i], "n": r.sample_size(), "attempts": ks, "success": y,
+                                "std": s.success_at})
     _style(ax, "both")
     ax.set_xticks(range(1, k_max + 1))
     ax.set_xlim(0.7, k_max + 0.3)
@@ -223,29 +221,29 @@ def draw_success_by_step(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
     """Success within k decisions, k = 1..max, mean (line) ± std over runs (band); ticks at
     the report's checkpoints (Pooltool's shots 1, 3, 6, ...), else at every decision."""
     drawn: dict[str, Any] = {"series": []}
-    stepped = [r for r in reports if "success_by_step" in r["overall"]["mean"]]
+    stepped = [r for r in reports if r.overall.mean.success_by_step is not None]
     names = sized(stepped)
-    checkpoints = next((list(map(int, r["overall"]["mean"]["success_within_steps"])) for r in stepped
-                        if "success_within_steps" in r["overall"]["mean"]), None)
-    n_steps = max([len(r["overall"]["mean"]["success_by_step"]) for r in stepped] + [1])
+    checkpoints = next((list(map(int, r.overall.mean.success_within_steps)) for r in stepped
+                        if r.overall.mean.success_within_steps is not None), None)
+    n_steps = max([len(r.overall.mean.success_by_step) for r in stepped] + [1])
     marked = checkpoints or list(range(1, n_steps + 1))  # the table's points: marked and labelled
     top = 0.0
     for i, r in enumerate(stepped):
         m, s = _mean(r)
-        y = m["success_by_step"]
-        err = [e or 0 for e in s["success_by_step"]]
+        y = m.success_by_step
+        err = [e or 0 for e in s.success_by_step]
         ks = list(range(1, len(y) + 1))
-        avg = m.get("avg_steps")
+        avg = m.avg_steps
         color = COLORS[i % len(COLORS)]
-        label = names[i] + (f", avg {avg:.1f} {r['step_noun']}s when solved" if avg is not None else "")
+        label = names[i] + (f", avg {avg:.1f} {r.step_noun}s when solved" if avg is not None else "")
         ax.fill_between(ks, [100 * max(0, a - e) for a, e in zip(y, err)], [100 * min(1, a + e) for a, e in zip(y, err)],
                         color=color, alpha=0.15, linewidth=0)
         ax.plot(ks, [100 * v for v in y], color=color, label=label, marker="o", markersize=2.5,
                 markevery=[k - 1 for k in marked if k <= len(y)])
         top = max([top] + [100 * (a + e) for a, e in zip(y, err)])
-        drawn["series"].append({"label": labels(stepped)[i], "n": sample_size(r), "steps": ks, "success": y,
-                                "std": s["success_by_step"], "avg_steps": avg})
-    noun = stepped[0]["step_noun"] if stepped else "step"
+        drawn["series"].append({"label": labels(stepped)[i], "n": r.sample_size(), "steps": ks, "success": y,
+                                "std": s.success_by_step, "avg_steps": avg})
+    noun = stepped[0].step_noun if stepped else "step"
     drawn["ticks"] = marked
     _style(ax, "y")
     ax.set_xticks(marked)
@@ -263,13 +261,13 @@ def draw_success_by_step(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
 
 def group_order(report: Report) -> list[str]:
     """The report's groups in the order the environment lists its tasks (e.g. S, M, L)."""
-    return list(report.get("groups", {}))
+    return list(report.groups or {})
 
 
 def draw_group_bars(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
     """Per task group and overall: tasks solved within K attempts (Pass@K), a bar per
     setting with the std over runs."""
-    grouped = [r for r in reports if r.get("groups")]
+    grouped = [r for r in reports if r.groups]
     names = labels(grouped)
     shown_names = sized(grouped)
     groups = list(dict.fromkeys(g for r in grouped for g in group_order(r))) + ["all"]
@@ -279,23 +277,23 @@ def draw_group_bars(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
     for i, r in enumerate(grouped):
         values, errs = [], []
         for g in groups:
-            sec = r["overall"] if g == "all" else r["groups"].get(g)
-            values.append(None if sec is None else sec["mean"]["success_at"][-1])
-            errs.append(0.0 if sec is None else sec["std"]["success_at"][-1] or 0.0)
+            sec = r.overall if g == "all" else r.groups.get(g)
+            values.append(None if sec is None else sec.mean.success_at[-1])
+            errs.append(0.0 if sec is None else sec.std.success_at[-1] or 0.0)
         xs = [j + (i - (len(grouped) - 1) / 2) * width for j in range(len(groups))]
         low, high = _clipped([v or 0 for v in values], errs)
         ax.bar(xs, [100 * (v or 0) for v in values], width=width * 0.92, color=COLORS[i % len(COLORS)],
                yerr=[[100 * e for e in low], [100 * e for e in high]], capsize=1.5, error_kw={"linewidth": 0.6},
                label=shown_names[i])
         top = max([top] + [100 * ((v or 0) + e) for v, e in zip(values, high)])
-        drawn["bars"].append({"label": names[i], "n": sample_size(r), "success": values, "std": errs})
+        drawn["bars"].append({"label": names[i], "n": r.sample_size(), "success": values, "std": errs})
     _style(ax)
     _ticks(ax, range(len(groups)), groups)
     ax.axvline(len(groups) - 1.5, color="#9ca3af", linewidth=0.8, linestyle=":")  # the groups | all
     _slot_limits(ax, len(groups))
     ax.set_ylim(0, _percent_limits(top))
-    noun = grouped[0]["group_noun"] if grouped else "group"
-    k = max((r["max_attempts"] for r in grouped), default=1)
+    noun = grouped[0].group_noun if grouped else "group"
+    k = max((r.max_attempts for r in grouped), default=1)
     ax.set_xlabel(noun)
     _ylabel(ax, "tasks solved (%)" if k == 1 else f"tasks solved within {k} attempts (%)")
     _legend(ax)
@@ -307,8 +305,8 @@ def draw_group_bars(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
 
 def _setting_key(r: Report, *drop: str) -> tuple:
     """What must agree for two reports to be one comparison (everything but `drop`)."""
-    facts = {"env": r["env"], "model": r["model"], "format": r["format"], "runs": r["runs"], "seed": r["seed"],
-             "k": r["max_attempts"], "tasks": r["task_set"]}
+    facts = {"env": r.env, "model": r.model, "format": r.format, "runs": r.runs, "seed": r.seed,
+             "k": r.max_attempts, "tasks": r.task_set}
     return tuple(v for k, v in facts.items() if k not in drop) + (_options_key(r, *drop),)
 
 
@@ -317,16 +315,13 @@ def vla_wm_pairs(reports: Sequence[Report]) -> list[tuple[Report, Report]]:
     setting pair up in the order given)."""
     by_key: dict[tuple, dict[str, list[Report]]] = defaultdict(lambda: defaultdict(list))
     for r in reports:
-        by_key[_setting_key(r, "format")][r["format"]].append(r)
+        by_key[_setting_key(r, "format")][r.format].append(r)
     return [pair for f in by_key.values() for pair in zip(*(f[x] for x in FORMATS))]
 
 
 def pass_at(report: Report, k: int) -> tuple[float, int]:
-    """(Pass@k', k') with k' = k, or the report's runs where it has fewer (a report made before
-    reports held Pass@k: its success within K attempts, which is Pass@1)."""
-    values = report["overall"].get("pass_at")
-    if not values:
-        return report["overall"]["mean"]["success_at"][-1], 1
+    """(Pass@k', k') with k' = k, or the report's runs where it has fewer."""
+    values = report.overall.pass_at
     kk = min(k, len(values))
     return values[kk - 1], kk
 
@@ -337,24 +332,24 @@ def draw_vla_wm_scatter(ax: Axes, reports: Sequence[Report], k: int | None = Non
     at the Pass@ its runs allow and labelled so, never at an invented Pass@k."""
     drawn: dict[str, Any] = {"points": [], "notes": []}
     pairs = vla_wm_pairs(reports)
-    envs = list(dict.fromkeys(vla["env"] for vla, _ in pairs))
-    titles = {vla["env"]: vla["title"] for vla, _ in pairs}
+    envs = list(dict.fromkeys(vla.env for vla, _ in pairs))
+    titles = {vla.env: vla.title for vla, _ in pairs}
     for vla, wm in pairs:
-        want = k or get_spec(vla["env"]).report.pass_k or vla["runs"]
+        want = k or get_spec(vla.env).report.pass_k or vla.runs
         (x, kx), (y, ky) = pass_at(vla, want), pass_at(wm, want)
         kk = min(kx, ky)
         if kk != kx or kk != ky:  # compare like with like
             (x, _), (y, _) = pass_at(vla, kk), pass_at(wm, kk)
-        color = COLORS[envs.index(vla["env"]) % len(COLORS)]
+        color = COLORS[envs.index(vla.env) % len(COLORS)]
         ax.scatter(100 * x, 100 * y, color=color, s=16, zorder=3)
-        options = ",".join(f"{a}={b}" for a, b in sorted(vla["env_options"].items()))
-        n = sample_size(vla) if sample_size(vla) == sample_size(wm) else f"{sample_size(vla)} / {sample_size(wm)}"
-        ax.annotate(vla["model"] + (f" {options}" if options else "") + f"\nPass@{kk}, n={n}", (100 * x, 100 * y),
+        options = ",".join(f"{a}={b}" for a, b in sorted(vla.env_options.items()))
+        n = vla.sample_size() if vla.sample_size() == wm.sample_size() else f"{vla.sample_size()} / {wm.sample_size()}"
+        ax.annotate(vla.model + (f" {options}" if options else "") + f"\nPass@{kk}, n={n}", (100 * x, 100 * y),
                     fontsize=ANNOTATION_PT, xytext=(3, 3), textcoords="offset points")
-        drawn["points"].append({"env": vla["env"], "model": vla["model"], "env_options": vla["env_options"],
+        drawn["points"].append({"env": vla.env, "model": vla.model, "env_options": vla.env_options,
                                 "k": kk, "vla": x, "wm": y, "n": n})
         if kk < want:
-            drawn["notes"].append(f"{vla['title']} {vla['model']}: {min(vla['runs'], wm['runs'])} run(s), fewer than "
+            drawn["notes"].append(f"{vla.title} {vla.model}: {min(vla.runs, wm.runs)} run(s), fewer than "
                                   f"Pass@{want} needs: drawn at Pass@{kk}")
     top = _percent_limits(max([100.0 * max(p["vla"], p["wm"]) for p in drawn["points"]] + [0.0]))
     ax.plot([0, top], [0, top], "--", color="#9ca3af", linewidth=1, zorder=1)
@@ -383,9 +378,9 @@ def ablation_pairs(reports: Sequence[Report], option: str = ABLATION_OPTION) -> 
     environment's boolean `option` is true in one and false in the other."""
     by_key: dict[tuple, dict[bool, list[Report]]] = defaultdict(lambda: defaultdict(list))
     for r in reports:
-        default = _option_default(r["env"], option)
+        default = _option_default(r.env, option)
         if isinstance(default, bool):
-            by_key[_setting_key(r, option)][bool(r["env_options"].get(option, default))].append(r)
+            by_key[_setting_key(r, option)][bool(r.env_options.get(option, default))].append(r)
     return [pair for v in by_key.values() for pair in zip(v[True], v[False])]
 
 
@@ -395,11 +390,11 @@ def draw_ablation_dumbbell(ax: Axes, reports: Sequence[Report], option: str = AB
     drawn: dict[str, Any] = {"rows": []}
     for with_, without in ablation_pairs(reports, option):
         for g in group_order(with_) + [None]:
-            a = _mean(with_, g)[0]["success_at"][-1]
-            b = _mean(without, g)[0]["success_at"][-1]
-            sec_w = with_["groups"][g] if g else None
-            n = sample_size(with_, sec_w)
-            drawn["rows"].append({"label": f"{with_['model']} {with_['format'].upper()} · {g or 'all'} (n={n})",
+            a = _mean(with_, g)[0].success_at[-1]
+            b = _mean(without, g)[0].success_at[-1]
+            sec_w = with_.groups[g] if g else None
+            n = with_.sample_size(sec_w)
+            drawn["rows"].append({"label": f"{with_.model} {with_.format.upper()} · {g or 'all'} (n={n})",
                                   "group": g, "with": a, "without": b, "n": n})
     for y, row in enumerate(drawn["rows"]):
         ax.plot([100 * row["without"], 100 * row["with"]], [y, y], color="#9ca3af", zorder=1)
@@ -414,7 +409,7 @@ def draw_ablation_dumbbell(ax: Axes, reports: Sequence[Report], option: str = AB
     ax.margins(y=0.15)
     top = _percent_limits(max([100 * max(r["with"], r["without"]) for r in drawn["rows"]] + [0.0]))
     ax.set_xlim(-0.02 * top, top * 1.02)
-    k = max((r["max_attempts"] for r in reports), default=1)
+    k = max((r.max_attempts for r in reports), default=1)
     ax.set_xlabel("tasks solved (%)" if k == 1 else f"tasks solved within {k} attempts (%)")
     _legend(ax)
     return drawn
@@ -430,19 +425,19 @@ def draw_star_bars(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
     """Per setting, a bar of all its levels (100 %): the share not won, then won with 0
     (where any were), 1, 2 and 3 stars, mean over runs, each share written where it fits;
     the stars per level after the bar."""
-    starred = [r for r in reports if "stars" in r["overall"]["mean"]]
+    starred = [r for r in reports if r.overall.mean.stars is not None]
     names = labels(starred)
-    zero = any(x["stars"]["levels_with"].get("0") for r in starred for x in r["overall"]["per_run"])
+    zero = any(x.stars.levels_with.get("0") for r in starred for x in r.overall.per_run)
     counts = (["0"] if zero else []) + ["1", "2", "3"]
-    drawn: dict[str, Any] = {"stars": counts, "labels": names, "n": [sample_size(r) for r in starred],
+    drawn: dict[str, Any] = {"stars": counts, "labels": names, "n": [r.sample_size() for r in starred],
                              "levels_with": [], "std": [], "shares": [], "not_won": [], "mean_all": [],
                              "mean_completed": []}
     segments = ["not won"] + [f"won, {c} star{'' if c == '1' else 's'}" for c in counts]
     colors = [STAR_COLORS[0]] + STAR_COLORS[-len(counts):]
     for i, r in enumerate(starred):
-        st, sd = r["overall"]["mean"]["stars"], r["overall"]["std"]["stars"]
-        tasks = r["overall"]["tasks"]
-        values = [st["levels_with"][c] for c in counts]
+        st, sd = r.overall.mean.stars, r.overall.std.stars
+        tasks = r.overall.tasks
+        values = [st.levels_with[c] for c in counts]
         shares = [v / tasks if tasks else 0.0 for v in values]
         not_won = max(0.0, 1.0 - sum(shares))
         left = 0.0
@@ -453,13 +448,13 @@ def draw_star_bars(ax: Axes, reports: Sequence[Report]) -> dict[str, Any]:
                 ax.text(100 * (left + share / 2), i, f"{100 * share:.0f}%", ha="center", va="center",
                         fontsize=ANNOTATION_PT, color="#111827" if j < 3 else "white")
             left += share
-        ax.text(101, i, f"{st['mean_all']:.2f}\u2605/level", va="center", ha="left", fontsize=ANNOTATION_PT)
+        ax.text(101, i, f"{st.mean_all:.2f}\u2605/level", va="center", ha="left", fontsize=ANNOTATION_PT)
         drawn["levels_with"].append(values)
-        drawn["std"].append([sd["levels_with"][c] or 0 for c in counts])
+        drawn["std"].append([sd.levels_with[c] or 0 for c in counts])
         drawn["shares"].append(shares)
         drawn["not_won"].append(not_won)
-        drawn["mean_all"].append(st["mean_all"])
-        drawn["mean_completed"].append(st["mean_completed"])
+        drawn["mean_all"].append(st.mean_all)
+        drawn["mean_completed"].append(st.mean_completed)
     _style(ax, "x")
     ax.set_yticks(range(len(starred)), sized(starred, "\n"))
     ax.invert_yaxis()
@@ -592,25 +587,25 @@ def figures_for(reports: Sequence[Report]) -> list[tuple[str, str, Any, list[Rep
     out = []
     by_env: dict[str, list[Report]] = defaultdict(list)
     for r in reports:
-        by_env[r["env"]].append(r)
+        by_env[r.env].append(r)
     for env, rs in by_env.items():
-        title = rs[0]["title"]
-        multi = [r for r in rs if r["max_attempts"] > 1]
+        title = rs[0].title
+        multi = [r for r in rs if r.max_attempts > 1]
         if multi:
             out.append((f"cumulative_{env}", f"{title}: tasks solved by attempt", draw_cumulative_bars, multi))
             out.append((f"by_attempt_{env}", f"{title}: success against attempts", draw_success_by_attempt, multi))
-        stepped = [r for r in rs if "success_by_step" in r["overall"]["mean"]]
+        stepped = [r for r in rs if r.overall.mean.success_by_step is not None]
         if stepped:
-            noun = stepped[0]["step_noun"]
+            noun = stepped[0].step_noun
             out.append((f"by_{noun}_{env}", f"{title}: tasks solved by {noun}", draw_success_by_step, stepped))
-        grouped = [r for r in rs if r.get("groups")]
+        grouped = [r for r in rs if r.groups]
         if grouped:
-            noun = grouped[0]["group_noun"]
+            noun = grouped[0].group_noun
             out.append((f"by_{noun}_{env}", f"{title}: tasks solved by {noun}", draw_group_bars, grouped))
         if ablation_pairs(rs):
             out.append((f"{ABLATION_OPTION}_{env}", f"{title}: with and without annotations",
                         draw_ablation_dumbbell, rs))
-        stars = [r for r in rs if "stars" in r["overall"]["mean"]]
+        stars = [r for r in rs if r.overall.mean.stars is not None]
         if stars:
             out.append((f"stars_{env}", f"{title}: levels won by stars", draw_star_bars, stars))
     if vla_wm_pairs(reports):

@@ -58,15 +58,15 @@ def test_view_numbers_are_the_report(run_dir):
     source = loaded(run_dir)
     report = report_of(run_dir)
     view = source.view()
-    assert view["report"] == report
+    assert view["report"] == report.to_json()
     header, rows = table([report])
     assert view["table"] == {"header": header, "rows": rows, "key": table_key([report])}
     assert view["title"] == "I-PHYRE"
-    per_run = report["overall"]["per_run"]
+    per_run = report.overall.per_run
     for key in ("solved", "attempts", "invalid_attempts", "model_errors", "retries", "input_tokens", "cost_usd"):
-        assert view["totals"][key] == sum(r[key] for r in per_run)
+        assert view["totals"][key] == sum(getattr(r, key) for r in per_run)
     assert view["curve"] == {"kind": "attempts", "x": list(range(1, 11)),
-                             "mean": report["overall"]["mean"]["success_at"], "std": report["overall"]["std"]["success_at"]}
+                             "mean": report.overall.mean.success_at, "std": report.overall.std.success_at}
     p = view["progress"]
     assert p["status"] == "complete" and p["episodes_done"] == p["episodes_total"] == 12 and p["eta_s"] is None
     assert p["attempts"] == len(read_records(run_dir)) and p["attempts_per_s"] > 0
@@ -84,10 +84,10 @@ def test_a_run_in_progress_shows_rates_over_its_finished_episodes(run_dir, tmp_p
     records = read_records(copy)
     config = read_config(copy)
     partial = build_report(config, source.tasks, records, source.k_max, finished_only=True)
-    finished = partial["overall"]["finished"]
-    assert view["report"] == report_of(copy) and view["partial"] == {"finished": finished, "total": 12}
-    assert 0 < finished < 12 and view["curve"]["mean"] == partial["overall"]["mean"]["success_at"]
-    assert view["solved_rate"] == partial["overall"]["mean"]["success_at"][-1]
+    finished = partial.overall.finished
+    assert view["report"] == report_of(copy).to_json() and view["partial"] == {"finished": finished, "total": 12}
+    assert 0 < finished < 12 and view["curve"]["mean"] == partial.overall.mean.success_at
+    assert view["solved_rate"] == partial.overall.mean.success_at[-1]
     assert view["table"]["rows"] == table([partial])[1] and view["n"] == f"6x2 ({finished} done)"
     assert loaded(run_dir).view()["partial"] is None  # a finished run: the whole report
 
@@ -116,14 +116,14 @@ def test_single_attempt_runs_get_a_per_decision_curve(tmp_path):
     report = kin.report()
     curve = kin.view()["curve"]
     assert curve["kind"] == "decisions" and curve["x"] == list(range(1, kin.max_steps + 1))
-    assert curve["mean"] == report["overall"]["mean"]["success_by_step"] == sorted(curve["mean"])  # cumulative
-    assert curve["mean"][-1] == pytest.approx(report["overall"]["mean"]["success_at"][0])
+    assert curve["mean"] == report.overall.mean.success_by_step == sorted(curve["mean"])  # cumulative
+    assert curve["mean"][-1] == pytest.approx(report.overall.mean.success_at[0])
     # every shot on a regular axis; the report's checkpoints are points of the curve
     pool = loaded(synthetic_run(tmp_path / "pool", env="pooltool", limit=6, max_steps=15, p_success=0.6))
-    m = pool.report()["overall"]["mean"]
+    m = pool.report().overall.mean
     curve = pool.view()["curve"]
     assert curve["x"] == list(range(1, 16)) and curve["noun"] == "shot" and curve["checkpoints"] == [1, 3, 6, 9, 12, 15]
-    assert [curve["mean"][k - 1] for k in curve["checkpoints"]] == list(m["success_within_steps"].values())
+    assert [curve["mean"][k - 1] for k in curve["checkpoints"]] == list(m.success_within_steps.values())
 
 
 def test_grid_pages_groups_and_cells(run_dir, tmp_path):
@@ -240,7 +240,7 @@ def test_http_api_and_live_events(run_dir, tmp_path):
             state = await (await client.get("/api/state")).json()
             assert state["runs"][0]["progress"]["attempts"] == 30
             report = await (await client.get(f"/api/runs/{source.id}/report")).json()
-            assert report == report_of(copy)
+            assert report == report_of(copy).to_json()
             grid = await (await client.get(f"/api/runs/{source.id}/grid?page=0")).json()
             assert len(grid["tasks"]) == 6
             frame = read_records(copy)[0].key_frames[0].path
@@ -397,7 +397,7 @@ def test_live_runs_from_metrics_snapshots(run_dir):
         await dashboard._merge_live({})
         assert dashboard.views["ray-bb22"]["progress"]["status"] == "ended" and source.snapshot is None
         await dashboard._poll(source)  # the directory-backed run is read like any other
-        assert dashboard.views[source.id]["report"] == report_of(run_dir)
+        assert dashboard.views[source.id]["report"] == report_of(run_dir).to_json()
         sent = [queue.get_nowait() for _ in range(queue.qsize())]
         assert len(sent) == 3 and all(m.startswith(b"event: message\n") for m in sent)
         dashboard.executor.shutdown()

@@ -153,7 +153,7 @@ def assert_page_shows(page, run_dir):
     page.select_option("#run-select", run_id)
     page.wait_for_selector(f'table.report[data-run="{run_id}"]')
     cells = page.eval_on_selector_all("#table table.report tr", "rows => rows.map(r => [...r.children].map(c => c.textContent))")
-    header, rows = table([report])
+    header, rows = table([report_of(run_dir)])
     assert cells == [header, *rows]
 
 
@@ -244,11 +244,11 @@ def test_records_appended_to_a_run_appear_without_reload(runs, serve, open_page,
     source = RunSource(copy)
     source.poll()
     partial = source.partial_report(source.report())
-    done = partial["overall"]["finished"]
+    done = partial.overall.finished
     page.wait_for_function(f"""() => {{ const n = document.querySelector('.card[data-run="{run_id}"] [data-field=partial]');
         return n && n.textContent.includes('over the {done} of 12 episodes finished'); }}""", timeout=UPDATE_LIMIT_S * 1000)
     points = page.eval_on_selector_all(f'svg g[data-run="{run_id}"] circle', "cs => cs.map(c => Number(c.dataset.value))")
-    assert points == partial["overall"]["mean"]["success_at"]
+    assert points == partial.overall.mean.success_at
     assert "partial" in page.text_content(f'.chart-legend span[data-run="{run_id}"]')
     assert page.evaluate("window.__notReloaded") is True
     page.screenshot(path=str(screenshots / "dashboard_live.png"), full_page=True)
@@ -320,7 +320,7 @@ def test_charts_per_environment_stars_colours_and_phase(serve, open_page, screen
         assert ticks[:15] == [str(k) for k in range(1, 16)]  # every shot, evenly spaced
 
         zero = page.eval_on_selector_all('.chart[data-kind="stars"] rect[data-stars="0"]', "rs => rs.map(r => Number(r.dataset.value))")
-        assert zero == [report_of(ctr)["overall"]["mean"]["stars"]["levels_with"]["0"]] and zero[0] > 0
+        assert zero == [report_of(ctr).overall.mean.stars.levels_with["0"]] and zero[0] > 0
         overlaps = page.evaluate("""() => {
             const svg = document.querySelector('.chart[data-kind="stars"] svg');
             const label = [...svg.querySelectorAll('text')].find(t => t.textContent === 'levels won').getBBox();
@@ -393,7 +393,7 @@ def test_leaderboard_of_a_suite_root_follows_its_runs(serve, open_page, screensh
     page.wait_for_selector(f'{cell}[data-unfinished=""]', timeout=UPDATE_LIMIT_S * 1000)
     expected = leaderboard_rows(root)
     assert board_rows(page) == expected
-    assert float(page.get_attribute(cell, "data-mean")) == report_of(full)["overall"]["mean"]["success_at"][-1]
+    assert float(page.get_attribute(cell, "data-mean")) == report_of(full).overall.mean.success_at[-1]
     assert page.evaluate("window.__notReloaded") is True
     page.screenshot(path=str(screenshots / "dashboard_leaderboard.png"), full_page=True)
 

@@ -65,8 +65,8 @@ def test_the_toy_environment_runs_through_the_whole_pipeline(ray_cluster, toy, t
     prompt = "\n".join(p for m in stored for p in m["content"] if isinstance(p, str))  # its texts
     assert "Your previous 1 attempt(s) at this task failed" in prompt
     report = report_of(tmp_path)
-    assert set(report["overall"]["mean"]["success_within_steps"]) == {"1", "2", "4"}
-    assert "Push1" in render_text(report) and set(report["groups"]) == {"near", "far"}
+    assert set(report.overall.mean.success_within_steps) == {"1", "2", "4"}
+    assert "Push1" in render_text(report) and set(report.groups) == {"near", "far"}
 
 
 def test_an_attempt_that_raises_is_isolated_logged_and_retried_on_resume(ray_cluster, tmp_path):

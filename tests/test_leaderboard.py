@@ -47,16 +47,16 @@ def test_rows_are_settings_and_columns_the_environments_headlines(root):
     # each figure is the report's of that directory
     for (r, g), cells in board.cells.items():
         report = report_of(cells[0].run_dir)
-        mean = report["overall"]["mean"]
-        k = report["max_attempts"]
-        expected = {"Succ": mean["success_at"][0], f"Succ@{k}": mean["success_at"][k - 1],
-                    "AUCCESS": mean.get("auccess"), "Stars": (mean.get("stars") or {}).get("total"),
+        mean = report.overall.mean
+        k = report.max_attempts
+        expected = {"Succ": mean.success_at[0], f"Succ@{k}": mean.success_at[k - 1],
+                    "AUCCESS": mean.auccess, "Stars": None if mean.stars is None else mean.stars.total,
                     # the paper's Pass@5 needs 5 runs: "-" with fewer, never a number made up
-                    "Pass@5": report["overall"]["pass_at"][4] if report["runs"] >= 5 else None,
-                    **{size: sec["mean"]["success_at"][0] for size, sec in report.get("groups", {}).items()}}
+                    "Pass@5": report.overall.pass_at[4] if report.runs >= 5 else None,
+                    **{size: sec.mean.success_at[0] for size, sec in (report.groups or {}).items()}}
         for column, cell in zip(board.groups[g].columns, cells):
             if column.header == "n":  # the row's tasks x runs, in words
-                assert cell.text == f"{report['overall']['tasks']}x{report['runs']}" and cell.mean is None
+                assert cell.text == f"{report.overall.tasks}x{report.runs}" and cell.mean is None
                 continue
             assert cell.mean == pytest.approx(expected[column.header]), (cells[0].run_dir, column.header)
     # a setting without a run of an environment shows "-"
@@ -86,7 +86,7 @@ def test_unfinished_runs_are_marked_and_never_averaged_or_best(root, tmp_path):
     paths = [root / "mock" / "phyre" / "vla", tmp_path / "cut"]
     board = _board(paths)
     cut = board.cells[(1, 0)]
-    done = sum(x["tasks"] - x["unfinished"] for x in report_of(tmp_path / "cut")["overall"]["per_run"])
+    done = sum(x.tasks - x.unfinished for x in report_of(tmp_path / "cut").overall.per_run)
     assert cut[1].unfinished == f"{done}/12" and cut[1].text == f"unfinished {done}/12"
     assert cut[0].text == f"6x2 ({done} done)"  # n: tasks x runs, and the episodes done
     assert all(c.mean is None and not c.best for c in cut)
@@ -109,7 +109,7 @@ def test_rows_of_other_tasks_or_runs_are_not_ranked_against_the_others(root, tmp
     assert any(rows[m][succ].best for m in ("mock VLA", "gpt-4o VLA"))  # the comparable rows are still ranked
     assert not any(rows[m][succ].unranked for m in ("mock VLA", "gpt-4o VLA"))
     assert any("not ranked against the other rows" in n and "human:ana VLA (n=1x1)" in n for n in board.notes)
-    assert "100.0\u2020" in render_text(board) and report["overall"]["tasks"] == 6
+    assert "100.0\u2020" in render_text(board) and report.overall.tasks == 6
 
 
 def test_two_runs_of_one_cell_are_refused(root, tmp_path):

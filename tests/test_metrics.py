@@ -42,7 +42,7 @@ def test_pass_at_k_is_the_papers_solved_in_at_least_one_of_k_runs():
     assert F.success_at([e for e in eps if e.run == 1], 1, 3) == pytest.approx(1 / 3)
     tasks = [Task(env="iphyre", id=t) for t in "abc"]
     report = build_report(RunConfig(env="iphyre", runs=3), tasks, records, k_max=10)
-    assert report["overall"]["pass_at"] == pytest.approx([4 / 9, 5 / 9, 2 / 3])
+    assert report.overall.pass_at == pytest.approx([4 / 9, 5 / 9, 2 / 3])
     header, rows = table([report])
     assert header[header.index("Att.10") + 2:][:3] == ["Pass@1", "Pass@2", "Pass@3"]  # beside Att.k, after AvgAtt
     assert rows[0][header.index("Pass@1"):header.index("Pass@3") + 1] == ["44.4", "55.6", "66.7"]
@@ -106,14 +106,14 @@ def test_report_counts_add_up_per_run_and_group():
                + episode_records("a", 1, 1, group="x") + episode_records("b", 1, 5, group="x")
                + episode_records("c", 1, None, group="y")[:4])  # c run 0 missing, run 1 unfinished
     report = build_report(config, tasks, records, k_max=10)
-    runs = report["overall"]["per_run"]
-    assert [(r["solved"], r["unsolved"], r["unfinished"]) for r in runs] == [(1, 1, 1), (2, 0, 1)]
+    runs = report.overall.per_run
+    assert [(r.solved, r.unsolved, r.unfinished) for r in runs] == [(1, 1, 1), (2, 0, 1)]
     for r in runs:
-        assert r["solved"] + r["unsolved"] + r["unfinished"] == r["tasks"] == 3
-        assert all(a <= b for a, b in zip(r["success_at"], r["success_at"][1:]))
-    assert report["overall"]["mean"]["success_at"][0] == pytest.approx((0 + 1 / 3) / 2)
-    assert report["groups"]["x"]["per_run"][1]["success_at"][4] == 1.0
-    assert report["groups"]["y"]["tasks"] == 1
+        assert r.solved + r.unsolved + r.unfinished == r.tasks == 3
+        assert all(a <= b for a, b in zip(r.success_at, r.success_at[1:]))
+    assert report.overall.mean.success_at[0] == pytest.approx((0 + 1 / 3) / 2)
+    assert report.groups["x"].per_run[1].success_at[4] == 1.0
+    assert report.groups["y"].tasks == 1
     for render in (render_text, render_markdown, render_csv):
         out = render(report)
         assert "Att.10" in out and "16.7" in out  # mean Att.1 = 1/6
@@ -250,11 +250,11 @@ def test_wm_predicted_outcomes_are_scored_against_the_attempt():
     assert p.accuracy == pytest.approx(2 / 4) and p.predicted_success_failed == pytest.approx(2 / 3)
     tasks = [Task(env="iphyre", id="a"), Task(env="iphyre", id="b")]
     wm = build_report(RunConfig(runs=1, format="wm"), tasks, records, k_max=10)
-    assert wm["overall"]["mean"]["wm"]["accuracy"] == pytest.approx(0.5)
+    assert wm.overall.mean.wm.accuracy == pytest.approx(0.5)
     text = render_text(wm)
     assert "PredAcc" in text and "50.0" in text and "predicted success: 1 solved, 2 failed" in text
     assert "4 of 5 decisions stated one" in text  # counts are integers, not 4.0 of 5.0
-    assert "wm" not in build_report(RunConfig(runs=1), tasks, records, k_max=10)["overall"]["mean"]
+    assert "wm" not in build_report(RunConfig(runs=1), tasks, records, k_max=10).to_json()["overall"]["mean"]
 
 
 # -- the report's table -----------------------------------------------------------------
@@ -290,7 +290,7 @@ def test_zero_star_wins_are_counted():
     records = [r.model_copy(update={"env": "cuttherope"}) for r in
                [rec("a", 0, 1, success=True, stars=0, steps=2), rec("b", 0, 1, success=True, stars=2, steps=4)]]
     report = build_report(RunConfig(env="cuttherope", runs=1), tasks, records, k_max=1)
-    assert report["overall"]["mean"]["stars"]["levels_with"] == {"0": 1, "1": 0, "2": 1, "3": 0}
+    assert report.overall.mean.stars.levels_with == {"0": 1, "1": 0, "2": 1, "3": 0}
     header, rows = table([report])
     assert header[header.index("Stars"):] == ["Stars", "Stars/lvl", "Stars/won", "0*", "1*", "2*", "3*"]
     assert rows[0][header.index("0*")] == "1"
@@ -341,10 +341,10 @@ def test_a_persons_time_is_reported_as_human_time_median_and_total():
         rec("c", 0, 1).model_copy(update={"model": "human:ana", "timing": Timing(decision_s=[100.0])}),  # unfinished
     ]
     person = build_report(RunConfig(model="human:ana", runs=1), tasks, records, k_max=10)
-    assert person["human_time"] == {"decisions": 4, "tasks": 2, "median_decision_s": 15.0, "median_task_s": 17.0,
-                                    "total_s": 134.0}
+    assert person.to_json()["human_time"] == {"decisions": 4, "tasks": 2, "median_decision_s": 15.0, "median_task_s": 17.0,
+                                              "total_s": 134.0}
     model = build_report(RunConfig(runs=1), tasks, [r.model_copy(update={"model": "mock"}) for r in records], k_max=10)
-    assert "human_time" not in model
+    assert model.human_time is None and "human_time" not in model.to_json()
     header, rows = table([person, model])
     at = header.index("Human s/dec")
     assert header[at:at + 3] == ["Human s/dec", "Human s/task", "Human min"]
@@ -359,9 +359,9 @@ def test_a_partial_report_counts_finished_episodes_only_and_says_so():
     records = episode_records("a", 0, 1) + episode_records("b", 0, None) + [rec("c", 0, 1), rec("c", 0, 2)]
     full = build_report(RunConfig(runs=1), tasks, records, k_max=10)
     partial = build_report(RunConfig(runs=1), tasks, records, k_max=10, finished_only=True)
-    assert full["overall"]["mean"]["success_at"][9] == 0.25  # 1 of 4 tasks, c and d counted as unsolved
-    assert partial["overall"]["mean"]["success_at"][9] == 0.5  # 1 of the 2 finished (a solved, b failed)
-    assert partial["partial"] and full["overall"]["finished"] == partial["overall"]["finished"] == 2
+    assert full.overall.mean.success_at[9] == 0.25  # 1 of 4 tasks, c and d counted as unsolved
+    assert partial.overall.mean.success_at[9] == 0.5  # 1 of the 2 finished (a solved, b failed)
+    assert partial.partial and full.overall.finished == partial.overall.finished == 2
     assert table([full])[1][0][1] == "4x1 (2 done)"
     assert "partial, 2 of 4 episodes finished" in render_text(full)
     assert "over the finished episodes only" in render_text(partial)

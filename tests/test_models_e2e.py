@@ -105,8 +105,8 @@ def test_faulty_server_run_equals_the_mock_run(server, models_file, mock_run, tm
     # exactly the decisions and outcomes of --model mock with the same seed
     assert views(out) == views(mock_run)
     ours, base = report_of(LOCAL, out), report_of(MOCK, mock_run)
-    for a, b in zip(ours["overall"]["per_run"], base["overall"]["per_run"]):
-        assert a["success_at"] == b["success_at"] and a["solved"] == b["solved"]
+    for a, b in zip(ours.overall.per_run, base.overall.per_run):
+        assert a.success_at == b.success_at and a.solved == b.solved
     # every fault kind was served, and shows up as retries / model errors
     st = server.stats(arrivals=False)
     assert set(st["faults"]) == set(TRANSPORT_FAULTS), st["faults"]
@@ -114,9 +114,9 @@ def test_faulty_server_run_equals_the_mock_run(server, models_file, mock_run, tm
     errors = sum(r.model_stats.model_errors for r in records)
     assert errors > 0 and retries > 0
     assert retries + errors >= sum(st["faults"].values())  # each failed try is one or the other
-    mean = ours["overall"]["mean"]
-    assert mean["model_errors"] * LOCAL.runs == errors and mean["retries"] * LOCAL.runs == retries
-    assert mean["cost_usd"] > 0 and mean["input_tokens"] > 0
+    mean = ours.overall.mean
+    assert mean.model_errors * LOCAL.runs == errors and mean.retries * LOCAL.runs == retries
+    assert mean.cost_usd > 0 and mean.input_tokens > 0
     table = render_text(ours)
     for column in ("ModelErr", "Retries", "TokensIn", "TokensOut", "Cost$"):
         assert column in table
@@ -190,8 +190,8 @@ def test_wm_run_over_http_reports_prediction_accuracy(server, models_file, tmp_p
     assert evaluate(config, tmp_path, RUNTIME.model_copy(update={"models_file": models_file()})).complete
     records = read_records(tmp_path)
     assert all(s.predicted_outcome in ("success", "failure") for r in records for s in r.steps)
-    wm = report_of(tmp_path)["overall"]["mean"]["wm"]
-    assert wm["stated"] == wm["decisions"] == sum(len(r.steps) for r in records)
+    wm = report_of(tmp_path).overall.mean.wm
+    assert wm.stated == wm.decisions == sum(len(r.steps) for r in records)
     right = sum(s.predicted_outcome == ("success" if r.success else "failure") for r in records for s in r.steps)
-    assert wm["accuracy"] == pytest.approx(right / wm["stated"])
+    assert wm.accuracy == pytest.approx(right / wm.stated)
     assert "PredAcc" in render_text(report_of(tmp_path))

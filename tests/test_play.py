@@ -420,7 +420,7 @@ def test_a_persons_run_is_reported_and_plotted_beside_a_models(tmp_path):
     reports = [report_of(tmp_path / "person"), report_of(tmp_path / "model")]
     header, rows = table(reports)
     assert {row[0] for row in rows} == {"human:ana VLA", "mock-scripted VLA"}  # a row per group and setting
-    assert reports[0]["overall"]["per_run"][0]["solved"] == 1 and reports[1]["overall"]["per_run"][0]["solved"] == 0
+    assert reports[0].overall.per_run[0].solved == 1 and reports[1].overall.per_run[0].solved == 0
     assert "human:ana" in render_text(reports)
     written = plot_all(reports, tmp_path / "figures")
     assert written and all(path.stat().st_size > 0 for path in written)

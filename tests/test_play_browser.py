@@ -577,7 +577,7 @@ def test_dashboard_shows_a_persons_run_beside_a_models_and_replays_both(ray_clus
         # the person's time to decide, labelled as a person's: median per decision and per task, and in all
         from deepphy.metrics.report import report_of
 
-        human = report_of(person)["human_time"]
+        human = report_of(person).to_json()["human_time"]
         values = card_values(page, run_id_of(page, person))
         assert float(values["human_median_decision_s"]) == pytest.approx(human["median_decision_s"])
         assert float(values["human_median_task_s"]) == pytest.approx(human["median_task_s"])

@@ -49,16 +49,16 @@ def test_cumulative_bars_are_the_reports_success_at_1_4_7_10(dirs):
     drawn = draw_cumulative_bars(ax, reports)
     bars = [p.get_height() for p in ax.patches]
     for i, r in enumerate(reports):
-        m = r["overall"]["mean"]
+        m = r.overall.mean
         assert drawn["checkpoints"][i] == [1, 4, 7, 10]
-        assert drawn["success"][i] == [m["success_at"][k - 1] for k in (1, 4, 7, 10)]
-        assert drawn["avg_attempts"][i] == m["avg_attempts"]
-        assert sum(drawn["segments"][i]) == pytest.approx(m["success_at"][9])
+        assert drawn["success"][i] == [m.success_at[k - 1] for k in (1, 4, 7, 10)]
+        assert drawn["avg_attempts"][i] == m.avg_attempts
+        assert sum(drawn["segments"][i]) == pytest.approx(m.success_at[9])
         # what is on the axes: the stacked segments, in percent
         assert bars[4 * i : 4 * i + 4] == pytest.approx([100 * s for s in drawn["segments"][i]])
     assert drawn["labels"] == ["mock VLA", "mock WM"]
     # the average attempts are written above the bars, on the one y axis (no twin axis)
-    assert [t.get_text() for t in ax.texts][:2] == [f"{r['overall']['mean']['avg_attempts']:.2f}" for r in reports]
+    assert [t.get_text() for t in ax.texts][:2] == [f"{r.overall.mean.avg_attempts:.2f}" for r in reports]
     assert len(ax.figure.axes) == 1
     assert ax.get_ylim()[0] == 0 and ax.get_ylim()[1] in (10, 20, 30, 40, 50, 60, 70, 80, 90, 100)
 
@@ -72,7 +72,7 @@ def test_one_setting_bar_does_not_fill_the_figure(dirs):
 
 def test_all_zero_results_get_a_0_to_10_percent_axis(zero):
     report = report_of(zero)
-    assert report["overall"]["mean"]["success_at"][-1] == 0
+    assert report.overall.mean.success_at[-1] == 0
     ax = _axes()
     draw_cumulative_bars(ax, [report])
     assert ax.get_ylim() == (0, 10)
@@ -82,18 +82,18 @@ def test_vla_wm_scatter_pairs_formats_at_pass_at_k(dirs):
     """The paper's figure: Pass@k (solved in at least one of k runs); I-PHYRE's k is 3, and two
     runs allow Pass@2 at most: drawn at Pass@2 and said so, no Pass@3 invented."""
     reports = [report_of(dirs[k]) for k in ("vla", "wm", "kinetix")]
-    assert reports[0]["runs"] == 2
+    assert reports[0].runs == 2
     ax = _axes()
     drawn = draw_vla_wm_scatter(ax, reports)
     assert len(drawn["points"]) == 1  # kinetix has one format only
     p = drawn["points"][0]
     assert (p["env"], p["k"]) == ("iphyre", 2)
-    assert p["vla"] == reports[0]["overall"]["pass_at"][1]
-    assert p["wm"] == reports[1]["overall"]["pass_at"][1]
+    assert p["vla"] == reports[0].overall.pass_at[1]
+    assert p["wm"] == reports[1].overall.pass_at[1]
     assert drawn["notes"] == ["I-PHYRE mock: 2 run(s), fewer than Pass@3 needs: drawn at Pass@2"]
     assert list(ax.collections[0].get_offsets()[0]) == pytest.approx([100 * p["vla"], 100 * p["wm"]])
     one = draw_vla_wm_scatter(_axes(), reports, k=1)
-    assert one["points"][0]["vla"] == pytest.approx(reports[0]["overall"]["mean"]["success_at"][9]) and not one["notes"]
+    assert one["points"][0]["vla"] == pytest.approx(reports[0].overall.mean.success_at[9]) and not one["notes"]
     assert [t.get_text() for t in ax.figure.legends[0].get_texts()] == ["I-PHYRE"]  # the environment's title
 
 
@@ -102,9 +102,9 @@ def test_annotation_dumbbell_by_size(dirs):
     drawn = draw_ablation_dumbbell(_axes(), [without, with_])
     assert [row["group"] for row in drawn["rows"]] == ["S", "M", "L", None]  # the environment's order, then all
     for row in drawn["rows"]:
-        sec = with_["groups"][row["group"]] if row["group"] else with_["overall"]
-        plain = without["groups"][row["group"]] if row["group"] else without["overall"]
-        assert row["with"] == sec["mean"]["success_at"][0] and row["without"] == plain["mean"]["success_at"][0]
+        sec = with_.groups[row["group"]] if row["group"] else with_.overall
+        plain = without.groups[row["group"]] if row["group"] else without.overall
+        assert row["with"] == sec.mean.success_at[0] and row["without"] == plain.mean.success_at[0]
     assert any(row["with"] != row["without"] for row in drawn["rows"])
 
 
@@ -114,7 +114,7 @@ def test_kinetix_per_size_with_and_without_annotation(dirs):
     drawn = draw_group_bars(ax, reports)
     assert drawn["groups"] == ["S", "M", "L", "all"]
     for bars, r in zip(drawn["bars"], reports):
-        assert bars["success"] == [r["groups"][g]["mean"]["success_at"][0] for g in "SML"] + [r["overall"]["mean"]["success_at"][0]]
+        assert bars["success"] == [r.groups[g].mean.success_at[0] for g in "SML"] + [r.overall.mean.success_at[0]]
     assert [b["label"] for b in drawn["bars"]] == ["mock VLA", "mock VLA annotate=False"]
     assert [t.get_text() for t in ax.get_xticklabels()] == ["S", "M", "L", "all"] and ax.get_xlabel() == "size"
     assert [p.get_height() for p in ax.patches][:4] == pytest.approx([100 * v for v in drawn["bars"][0]["success"]])
@@ -124,12 +124,12 @@ def test_success_by_shot_has_ticks_at_the_checkpoints(dirs):
     pool = report_of(dirs["pooltool"])
     ax = _axes()
     drawn = draw_success_by_step(ax, [pool])
-    m = pool["overall"]["mean"]
+    m = pool.overall.mean
     series = drawn["series"][0]
-    assert series["steps"] == list(range(1, 16)) and series["success"] == m["success_by_step"]
-    for k, v in m["success_within_steps"].items():  # the curve passes through the table's figures
+    assert series["steps"] == list(range(1, 16)) and series["success"] == m.success_by_step
+    for k, v in m.success_within_steps.items():  # the curve passes through the table's figures
         assert series["success"][int(k) - 1] == v
-    assert series["avg_steps"] == m["avg_steps"]
+    assert series["avg_steps"] == m.avg_steps
     assert list(ax.get_xticks()) == [1, 3, 6, 9, 12, 15] == drawn["ticks"]
     assert ax.get_xlabel() == "shots (k)"
     kinetix = draw_success_by_step(_axes(), [report_of(dirs["kinetix"])])
@@ -142,15 +142,15 @@ def test_star_bars(dirs):
     stars = report_of(dirs["stars"])
     ax = _axes()
     drawn = draw_star_bars(ax, [stars])
-    st = stars["overall"]["mean"]["stars"]
-    tasks = stars["overall"]["tasks"]
-    assert drawn["levels_with"][0] == [st["levels_with"][k] for k in drawn["stars"]]
-    assert drawn["shares"][0] == pytest.approx([st["levels_with"][k] / tasks for k in drawn["stars"]])
-    assert drawn["mean_all"][0] == st["mean_all"] and drawn["mean_completed"][0] == st["mean_completed"]
+    st = stars.overall.mean.stars
+    tasks = stars.overall.tasks
+    assert drawn["levels_with"][0] == [st.levels_with[k] for k in drawn["stars"]]
+    assert drawn["shares"][0] == pytest.approx([st.levels_with[k] / tasks for k in drawn["stars"]])
+    assert drawn["mean_all"][0] == st.mean_all and drawn["mean_completed"][0] == st.mean_completed
     widths = [p.get_width() for p in ax.patches]
     assert widths == pytest.approx([100 * drawn["not_won"][0], *(100 * x for x in drawn["shares"][0])])
     assert sum(widths) == pytest.approx(100) and ax.get_xlim() == (0, 100)
-    assert [t.get_text() for t in ax.get_yticklabels()] == [f"mock VLA\n(n={tasks}x{stars['runs']})"]
+    assert [t.get_text() for t in ax.get_yticklabels()] == [f"mock VLA\n(n={tasks}x{stars.runs})"]
 
 
 def test_success_against_attempts_is_the_reports_att_k(dirs):
@@ -160,7 +160,7 @@ def test_success_against_attempts_is_the_reports_att_k(dirs):
     ax = _axes()
     drawn = draw_success_by_attempt(ax, reports)
     for series, r, line in zip(drawn["series"], reports, ax.get_lines()):
-        assert series["success"] == r["overall"]["mean"]["success_at"] and series["attempts"] == list(range(1, 11))
+        assert series["success"] == r.overall.mean.success_at and series["attempts"] == list(range(1, 11))
         assert list(line.get_ydata()) == pytest.approx([100 * v for v in series["success"]])
         assert series["n"] == f"6x2"
     assert [t.get_text() for t in ax.figure.legends[0].get_texts()] == ["mock VLA (n=6x2)", "mock WM (n=6x2)"]
@@ -191,7 +191,7 @@ def test_every_figure_fits_one_and_two_columns_with_readable_text(dirs):
             from deepphy.plots import vla_wm_pairs
 
             shown = [r for pair in vla_wm_pairs(rs) for r in pair] if stem == "vla_vs_wm" else rs
-            n = [f"{r['overall']['tasks']}x{r['runs']}" for r in shown]
+            n = [f"{r.overall.tasks}x{r.runs}" for r in shown]
             assert all(x in words for x in n), (stem, width)
 
 
@@ -216,7 +216,7 @@ def test_plot_cli_writes_png_pdf_and_the_drawn_data(dirs, tmp_path, capsys):
         assert (out / f"{stem}.pdf").read_bytes()[:5] == b"%PDF-"
         assert str(out / f"{stem}.png") in printed
     data = json.loads((out / "figures.json").read_text())
-    assert data["vla_vs_wm"]["points"][0]["vla"] == report_of(dirs["vla"])["overall"]["pass_at"][1]
+    assert data["vla_vs_wm"]["points"][0]["vla"] == report_of(dirs["vla"]).overall.pass_at[1]
     assert main(["plot", str(dirs["kinetix"]), "--out", str(tmp_path / "kinetix")]) == 0
     assert (tmp_path / "kinetix" / "by_size_kinetix.png").exists()
 

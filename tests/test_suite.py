@@ -101,7 +101,7 @@ def test_every_cell_is_a_run_directory_named_by_the_manifest(done):
     for cell in listed:
         assert read_config(done / cell.dir) == cell.config
         report = report_of(done / cell.dir)  # what works on a run works on a cell
-        assert report["overall"]["per_run"][0]["unfinished"] == 0
+        assert report.overall.per_run[0].unfinished == 0
 
 
 def test_leaderboard_of_the_root_has_a_row_per_setting_and_a_group_per_environment(done, capsys):
@@ -111,8 +111,8 @@ def test_leaderboard_of_the_root_has_a_row_per_setting_and_a_group_per_environme
     assert [(c["title"], c["header"]) for c in board["columns"]] == [
         ("I-PHYRE", "n"), ("I-PHYRE", "Succ@10"), ("I-PHYRE", "Pass@3"), ("PHYRE-B", "n"), ("PHYRE-B", "Succ@10"),
         ("PHYRE-B", "Pass@5"), ("PHYRE-B", "AUCCESS")]
-    phyre_vla = report_of(done / "mock/phyre/vla")["overall"]["mean"]
-    assert board["rows"][0]["cells"][4]["mean"] == phyre_vla["success_at"][9]
+    phyre_vla = report_of(done / "mock/phyre/vla").overall.mean
+    assert board["rows"][0]["cells"][4]["mean"] == phyre_vla.success_at[9]
 
 
 def test_running_a_complete_suite_again_adds_nothing_and_starts_no_ray(done, monkeypatch):

@@ -27,8 +27,9 @@ from aiohttp import web
 from deepphy import webguard
 from deepphy.config import RuntimeOptions
 from deepphy.dashboard.source import RunSource
+from deepphy.metrics import registry
 from deepphy.metrics.leaderboard import LeaderboardError, as_dict, leaderboard, not_started
-from deepphy.metrics.report import setting
+from deepphy.metrics.report import Report, setting_label
 from deepphy.play import replay
 from deepphy.ray_connect import ensure_ray
 from deepphy.runs.discovery import dir_id, is_run_dir, live_snapshots, runs_in
@@ -204,14 +205,14 @@ class Dashboard:
 
     async def _update_board(self, root: Path) -> None:
         mine = [s for s in self.sources.values() if s.path.is_relative_to(root)]
-        reports = {s.path: self.views[s.id]["report"] for s in mine if self.views.get(s.id, {}).get("report")}
+        reports = {s.path: await self._call(s, s.report) for s in mine if self.views.get(s.id, {}).get("report")}
         view = await self._call(None, self._board_view, root, {s.path for s in mine}, reports)
         if view is None or self.boards.get(view["id"]) == view:
             return
         self.boards[view["id"]] = view
         self._broadcast({"type": "leaderboard", "board": view})
 
-    def _board_view(self, root: Path, started: set[Path], reports: dict[Path, dict[str, Any]]) -> dict[str, Any] | None:
+    def _board_view(self, root: Path, started: set[Path], reports: dict[Path, Report]) -> dict[str, Any] | None:
         """The leaderboard of the runs below `root` (None while there is nothing to show)."""
         view = {"id": f"board-{dir_id(root)}", "path": str(root), "name": root.name, "board": None, "error": None}
         try:
@@ -292,7 +293,7 @@ class Dashboard:
 
     async def api_report(self, request: web.Request) -> web.Response:
         source = self._source(request)
-        return web.json_response(await self._call(source, source.report))
+        return web.json_response(await self._call(source, source.report_json))
 
     async def api_grid(self, request: web.Request) -> web.Response:
         source = self._source(request)
@@ -363,8 +364,8 @@ def sse(event: str, payload: Any) -> bytes:
 def live_only_view(ray_id: str, snap: dict[str, Any]) -> dict[str, Any]:
     """A live run whose directory this machine cannot read: the metrics actor's figures."""
     config = snap.get("config") or {}
-    label = setting({"model": config.get("model", "?"), "format": config.get("format", "?"),
-                     "env_options": config.get("env_options", {}), "prompts": config.get("prompts", "before-parity")})
+    label = setting_label(config.get("model", "?"), config.get("format", "?"), config.get("env_options", {}),
+                          config.get("prompts", "before-parity"))
     done, total = snap.get("episodes_done", 0), snap.get("episodes_total", 0)
     return {
         "id": f"ray-{ray_id}", "path": snap.get("run_dir", ""), "name": ray_id, "label": label,
@@ -373,8 +374,7 @@ def live_only_view(ray_id: str, snap: dict[str, Any]) -> dict[str, Any]:
         "progress": {"status": "running", "phase": snap.get("phase"), "episodes_done": done, "episodes_total": total,
                      "attempts": snap.get("attempts", 0), "attempts_per_s": snap.get("attempts_per_s"),
                      "eta_s": snap.get("eta_s"), "loading": False},
-        "totals": {k: snap.get(k, 0) for k in ("solved", "attempts", "invalid_attempts", "model_errors", "retries",
-                                               "input_tokens", "output_tokens", "cost_usd")},
+        "totals": {m.key: snap.get(m.key, 0) for m in registry.metrics("run") if m.total},
         "curve": None, "stars": None, "table": None, "report": None, "errors": [],
         "note": "the run directory is not readable from here: the live snapshot of its metrics actor",
     }

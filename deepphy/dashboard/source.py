@@ -18,7 +18,8 @@ from pydantic import ValidationError
 
 from deepphy.metrics import figures as F
 from deepphy.config import is_human
-from deepphy.metrics.report import build_report, episodes_done, sample_size, setting, table, table_key
+from deepphy.metrics import registry
+from deepphy.metrics.report import Report, build_report, setting_label, table, table_key
 from deepphy.plan import plan
 from deepphy.runs.discovery import dir_id
 from deepphy.runs.records import AttemptRecord
@@ -169,7 +170,7 @@ class RunSource:
     @property
     def label(self) -> str:
         c = self.config
-        return setting({"model": c.model, "format": c.format.value, "env_options": c.env_options, "prompts": c.prompts})
+        return setting_label(c.model, c.format.value, c.env_options, c.prompts)
 
     @property
     def offset(self) -> int:
@@ -181,37 +182,41 @@ class RunSource:
 
     # -- figures (all from the report code) ---------------------------------------------
 
-    def report(self) -> dict[str, Any]:
-        """Exactly what `deepphy report --json` prints for the records read so far."""
+    def report(self) -> Report:
+        """Exactly what `deepphy report` makes of the records read so far."""
         if self._report is None or self._report[0] != self.version:
             self._report = (self.version, build_report(self.config, self.tasks, self.records, self.k_max))
         return self._report[1]
 
-    def partial_report(self, report: dict[str, Any]) -> dict[str, Any] | None:
+    def report_json(self) -> dict[str, Any]:
+        """What `deepphy report --json` prints for the records read so far."""
+        return self.report().to_json()
+
+    def partial_report(self, report: Report) -> Report | None:
         """While episodes are unfinished: the report over the finished ones alone (what the
         page's rates show, marked partial with the finished count); None once all are done."""
-        done, total = episodes_done(report)
+        done, total = report.episodes_done()
         if done == total:
             return None
         return build_report(self.config, self.tasks, self.records, self.k_max, finished_only=True)
 
-    def curve(self, report: dict[str, Any]) -> dict[str, Any]:
+    def curve(self, report: Report) -> dict[str, Any]:
         """The success curve the report implies, mean and std over runs: within k attempts
         (K > 1), else within k decisions, k = 1..max (one attempt of many decisions)."""
-        m, s = report["overall"]["mean"], report["overall"]["std"]
-        if report["max_attempts"] > 1 or "success_by_step" not in m:
-            return {"kind": "attempts", "x": list(range(1, report["max_attempts"] + 1)),
-                    "mean": m["success_at"], "std": s["success_at"]}
-        return {"kind": "decisions", "noun": report["step_noun"], "x": list(range(1, len(m["success_by_step"]) + 1)),
-                "mean": m["success_by_step"], "std": s["success_by_step"],
-                "checkpoints": [int(k) for k in m.get("success_within_steps", {})]}
+        m, s = report.overall.mean, report.overall.std
+        if report.max_attempts > 1 or m.success_by_step is None:
+            return {"kind": "attempts", "x": list(range(1, report.max_attempts + 1)),
+                    "mean": m.success_at, "std": s.success_at}
+        return {"kind": "decisions", "noun": report.step_noun, "x": list(range(1, len(m.success_by_step) + 1)),
+                "mean": m.success_by_step, "std": s.success_by_step,
+                "checkpoints": [int(k) for k in m.success_within_steps or {}]}
 
-    def progress(self, report: dict[str, Any], now: float | None = None) -> dict[str, Any]:
+    def progress(self, report: Report, now: float | None = None) -> dict[str, Any]:
         now = time.time() if now is None else now
-        per_run = report["overall"]["per_run"]
-        done = sum(r["tasks"] - r["unfinished"] for r in per_run)
-        total = report["overall"]["tasks"] * report["runs"]
-        attempts = sum(r["attempts"] for r in per_run)
+        per_run = report.overall.per_run
+        done = sum(r.tasks - r.unfinished for r in per_run)
+        total = report.overall.tasks * report.runs
+        attempts = sum(r.attempts for r in per_run)
         writing = writer_holds_lock(self.path)
         if writing is None:  # no /proc/locks: a log that grew in the last half minute is live
             writing = now - (self.path / ATTEMPTS).stat().st_mtime < 30 if self.log_size else False
@@ -242,24 +247,23 @@ class RunSource:
         report = self.report()
         partial = self.partial_report(report)
         shown = partial or report
-        per_run = report["overall"]["per_run"]
-        totals = {k: sum(r[k] for r in per_run) for k in
-                  ("solved", "attempts", "invalid_attempts", "model_errors", "retries",
-                   "input_tokens", "output_tokens", "cost_usd")}
+        totals = totals_of(report)
         header, rows = table([shown])
-        done, total = episodes_done(report)
+        done, total = report.episodes_done()
+        stars, human_time = shown.overall.mean.stars, report.human_time
         return {
-            "id": self.id, "path": str(self.path), "name": self.path.name, "label": setting(report),
-            "env": report["env"], "title": report["title"], "model": report["model"], "format": report["format"],
-            "env_options": report["env_options"], "runs": report["runs"], "k_max": report["max_attempts"],
+            "id": self.id, "path": str(self.path), "name": self.path.name, "label": report.setting,
+            "env": report.env, "title": report.title, "model": report.model, "format": report.format,
+            "env_options": report.env_options, "runs": report.runs, "k_max": report.max_attempts,
             "groups": sorted({t.group for t in self.tasks if t.group}), "tasks": len(self.tasks),
-            "n": sample_size(report), "human": is_human(report["model"]), "human_time": report.get("human_time"),
+            "n": report.sample_size(), "human": is_human(report.model),
+            "human_time": None if human_time is None else human_time.model_dump(),
             "partial": None if partial is None else {"finished": done, "total": total},
-            "solved_rate": shown["overall"]["mean"]["success_at"][shown["max_attempts"] - 1],
+            "solved_rate": shown.overall.mean.success_at[shown.max_attempts - 1],
             "version": self.version, "progress": self.progress(report), "totals": totals,
-            "curve": self.curve(shown), "stars": shown["overall"]["mean"].get("stars"),
-            "table": {"header": header, "rows": rows, "key": table_key([shown])}, "report": report, "errors": self.errors[-5:],
-            "live": self.snapshot is not None,
+            "curve": self.curve(shown), "stars": None if stars is None else stars.model_dump(),
+            "table": {"header": header, "rows": rows, "key": table_key([shown])}, "report": report.to_json(),
+            "errors": self.errors[-5:], "live": self.snapshot is not None,
         }
 
     # -- grid ---------------------------------------------------------------------------
@@ -399,6 +403,11 @@ class RunSource:
             return None
         return read_image(self.path, name)
 
+
+
+def totals_of(report: Report) -> dict[str, Any]:
+    """The counts a run's card shows, summed over its runs (the registry's totals)."""
+    return {m.key: sum(getattr(r, m.key) for r in report.overall.per_run) for m in registry.metrics("run") if m.total}
 
 
 SAMPLE_COLUMNS = ["task", "group", "run", "state", "attempts", "solved_at", "decisions", "invalid", "reason", "stars",

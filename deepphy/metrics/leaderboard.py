@@ -17,12 +17,12 @@ import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Collection, Sequence
+from typing import Any, Collection, Sequence
 
 from deepphy.envs import get_spec, specs
+from deepphy.metrics.registry import BoardColumn, by_place, count_cell, percent_cell
 from deepphy.metrics.report import (
-    LATEX_PREAMBLE, LATEX_WIDTH, _count, _pct, build_report, episodes_done, latex_escape, mixed_task_sets, options_of,
-    paper_setting, sample_size,
+    LATEX_PREAMBLE, LATEX_WIDTH, Report, build_report, latex_escape, mixed_task_sets, paper_setting,
 )
 from deepphy.plan import plan
 from deepphy.runs.manifest import has_manifest, read_manifest
@@ -33,16 +33,6 @@ UNRANKED = "\u2020"  # after a value left out of its column's ranking (other tas
 
 class LeaderboardError(ValueError):
     """Run directories that do not make one table. The message is for the user."""
-
-
-@dataclass(frozen=True)
-class Column:
-    header: str
-    key: str  # what the column is, for the key under the table
-    figure: Callable[[dict[str, Any]], tuple[float | None, float | None]] | None  # report -> (mean, std)
-    percent: bool = True  # else a count
-    ranked: bool = True  # its best value is marked (a score; not n, not a person's time)
-    text: Callable[[dict[str, Any]], str] | None = None  # a column of words (n), not of figures
 
 
 @dataclass
@@ -64,8 +54,8 @@ class Group:
     env: str
     options: dict[str, Any]
     title: str
-    columns: list[Column]
-    reports: list[dict[str, Any]] = field(default_factory=list)
+    columns: list[BoardColumn] = field(default_factory=list)
+    reports: list[Report] = field(default_factory=list)
 
 
 @dataclass
@@ -87,81 +77,31 @@ class Leaderboard:
         return list(dict.fromkeys(c.key for g in self.groups for c in g.columns))
 
 
-def row_model(report: dict[str, Any]) -> str:
+def row_model(report: Report) -> str:
     """A row's model: the run's, and for a user's agent (named by its entry point and
     arguments) its package and version too: two versions of an agent are two rows."""
-    agent = report.get("agent")
-    if agent is None:
-        return report["model"]
-    return f"{report['model']} ({agent['package']} {agent['version'] or 'unversioned'})"
+    if report.agent is None:
+        return report.model
+    return f"{report.model} ({report.agent.label})"
 
 
 def _missing(group: Group) -> list[Cell]:
     return [Cell() for _ in group.columns]
 
 
-def _overall(report: dict[str, Any], name: str, index: int | None = None):
-    m, s = report["overall"]["mean"].get(name), report["overall"]["std"].get(name)
-    return (m, s) if index is None or m is None else (m[index], s[index])
+N_COLUMN = BoardColumn("n", "n: tasks x runs of the row's run (rows of other n are not ranked against each other)",
+                       None, percent=False, ranked=False, text=lambda r: r.sample_size())
 
 
-N_COLUMN = Column("n", "n: tasks x runs of the row's run (rows of other n are not ranked against each other)",
-                  None, percent=False, ranked=False, text=sample_size)
-
-
-def _human(name: str, scale: float = 1.0):
-    def figure(report: dict[str, Any]) -> tuple[float | None, None]:
-        value = (report.get("human_time") or {}).get(name)
-        return (None if value is None else value / scale), None
-    return figure
-
-
-HUMAN_COLUMNS = [  # a person's rows only; a time, never ranked
-    Column("Human s/dec", "Human s/dec, s/task: a person's time to decide, median per decision and per task",
-           _human("median_decision_s"), percent=False, ranked=False),
-    Column("Human s/task", "Human s/dec, s/task: a person's time to decide, median per decision and per task",
-           _human("median_task_s"), percent=False, ranked=False),
-    Column("Human min", "Human min: the person's time to decide in all", _human("total_s", 60.0), percent=False,
-           ranked=False),
-]
-
-
-def comparability(report: dict[str, Any]) -> tuple[str, int, int]:
+def comparability(report: Report) -> tuple[str, int, int]:
     """What two rows of one environment setting must share to be ranked against each other:
     the task set, the runs and the attempts per task."""
-    return report["task_set"], report["runs"], report["max_attempts"]
+    return report.task_set, report.runs, report.max_attempts
 
 
-def headline_columns(report: dict[str, Any]) -> list[Column]:
-    """An environment's headline figures, from its spec (the same for every report of it),
-    after its n."""
-    spec = get_spec(report["env"])
-    k = report["max_attempts"]
-    succ = (f"Succ@{k}", f"Succ@{k}: tasks solved within {k} attempts (%)") if k > 1 else \
-        ("Succ", "Succ: tasks solved in their one attempt (all its decisions, shots or actions) (%)")
-    columns = [N_COLUMN]
-    if spec.report.leaderboard_groups:
-        for g in report.get("groups", {}):
-            columns.append(Column(g, f"{g}: tasks of {spec.report.group_noun} {g} solved (%)",
-                                  lambda r, g=g: (r["groups"][g]["mean"]["success_at"][k - 1],
-                                                  r["groups"][g]["std"]["success_at"][k - 1])))
-    columns.append(Column(*succ, lambda r: _overall(r, "success_at", k - 1)))
-    if spec.report.pass_k:
-        p = spec.report.pass_k
-        columns.append(Column(
-            f"Pass@{p}", f"Pass@{p}: tasks solved within the attempt budget in at least one of {p} runs (%; the paper's "
-            f"Pass@{p}; - with fewer than {p} runs)",
-            lambda r: (r["overall"].get("pass_at", [])[p - 1] if len(r["overall"].get("pass_at", [])) >= p else None, None)))
-    if spec.report.auccess:
-        columns.append(Column("AUCCESS", "AUCCESS: PHYRE's area under the success curve (%)",
-                              lambda r: _overall(r, "auccess")))
-    if spec.report.stars:
-        def stars(r):
-            m, s = r["overall"]["mean"].get("stars"), r["overall"]["std"].get("stars")
-            return (None, None) if m is None else (m["total"], s["total"])
-
-        columns.append(Column("Stars", "Stars: stars earned per run", stars, percent=False))
-    return columns
+def headline_columns(reports: Sequence[Report]) -> list[BoardColumn]:
+    """An environment setting's headline figures (each metric's, in their places), after its n."""
+    return [N_COLUMN, *(c for m in by_place() if m.headline is not None for c in m.headline(reports))]
 
 
 def _setting_title(env: str, options: dict[str, Any]) -> str:
@@ -169,7 +109,7 @@ def _setting_title(env: str, options: dict[str, Any]) -> str:
     return title + "".join(f" {k}={v}" for k, v in sorted(options.items()))
 
 
-def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path] | None = None) -> Leaderboard:
+def leaderboard(reports: Sequence[Report], run_dirs: Sequence[str | Path] | None = None) -> Leaderboard:
     """The table of these reports (`run_dirs[i]` made `reports[i]`). Two reports of one row
     and one environment setting are an error: the table would have to pick one. A column's
     best is marked among rows of one task set, runs and attempts (`comparability`): those of
@@ -177,31 +117,30 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
     run_dirs = [str(d) for d in run_dirs] if run_dirs is not None else [None] * len(reports)
     groups: dict[tuple[str, str], Group] = {}
     rows: dict[tuple[str, str], int] = {}
-    placed: dict[tuple[int, int], tuple[dict[str, Any], str | None]] = {}
+    placed: dict[tuple[int, int], tuple[Report, str | None]] = {}
     agents: dict[str, dict[str, Any]] = {}
     for report, run_dir in zip(reports, run_dirs):
-        options = options_of(report)
-        gkey = (report["env"], json.dumps(options, sort_keys=True))
+        options = report.options
+        gkey = (report.env, json.dumps(options, sort_keys=True))
         if gkey not in groups:
-            groups[gkey] = Group(report["env"], options, _setting_title(report["env"], options), headline_columns(report))
+            groups[gkey] = Group(report.env, options, _setting_title(report.env, options))
         group = groups[gkey]
         g = list(groups).index(gkey)
-        r = rows.setdefault((row_model(report), report["format"]), len(rows))
-        if report.get("agent") is not None:
-            agents[row_model(report)] = report["agent"]
+        r = rows.setdefault((row_model(report), report.format), len(rows))
+        if report.agent is not None:
+            agents[row_model(report)] = report.agent.model_dump(mode="json")
         if (r, g) in placed:
-            raise LeaderboardError(f"two runs of {row_model(report)} {report['format'].upper()} on {group.title}: "
+            raise LeaderboardError(f"two runs of {row_model(report)} {report.format.upper()} on {group.title}: "
                                    f"{placed[(r, g)][1]} and {run_dir}; give one of them")
         placed[(r, g)] = (report, run_dir)
         group.reports.append(report)
     for group in groups.values():
-        if any("human_time" in report for report in group.reports):
-            group.columns = group.columns + HUMAN_COLUMNS
+        group.columns = headline_columns(group.reports)
     cells: dict[tuple[int, int], list[Cell]] = {}
     for (r, g), (report, run_dir) in placed.items():
         columns = list(groups.values())[g].columns
-        done, total = episodes_done(report)
-        n = sample_size(report)
+        done, total = report.episodes_done()
+        n = report.sample_size()
         if done < total:
             cells[(r, g)] = [Cell(text=n if c.text else f"unfinished {done}/{total}" if i == 1 else "",
                                   unfinished=f"{done}/{total}", run_dir=run_dir, n=n) for i, c in enumerate(columns)]
@@ -212,7 +151,7 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
                 cells[(r, g)].append(Cell(text=column.text(report), run_dir=run_dir, n=n))
                 continue
             m, s = column.figure(report)
-            text = _pct(m, s) if column.percent else _count(m, s)
+            text = percent_cell(m, s) if column.percent else count_cell(m, s)
             cells[(r, g)].append(Cell(m, s, text, run_dir=run_dir, n=n))
     notes = []
     for g, group in enumerate(groups.values()):  # the best finished value of each column, among comparable rows
@@ -229,7 +168,7 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
             if not classes:
                 continue
             # the class of the most rows (on a tie, the most tasks x runs) is ranked
-            size = lambda k: in_group[classes[k][0][0]]["overall"]["tasks"] * k[1]  # noqa: E731 - tasks x runs
+            size = lambda k: in_group[classes[k][0][0]].overall.tasks * k[1]  # noqa: E731 - tasks x runs
             ranked_key = max(classes, key=lambda k: (len(classes[k]), size(k)))
             ranked = classes[ranked_key]
             for key, members in classes.items():
@@ -242,12 +181,12 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
                 for _, cell in ranked:
                     cell.best = cell.mean == top
         if unranked:
-            names = ", ".join(f"{m} {f.upper()} (n={sample_size(in_group[r])})"
+            names = ", ".join(f"{m} {f.upper()} (n={in_group[r].sample_size()})"
                               for (m, f), r in rows.items() if r in unranked)
             notes.append(f"{group.title}: not ranked against the other rows (other tasks, runs or attempts): {names}")
     notes += [f"{group.title}: {note}" for group in groups.values() if (note := mixed_task_sets(group.reports))]
-    notes += [f"{group.title}: {paper_setting(group.reports[0])}" for group in groups.values()
-              if paper_setting(group.reports[0]) != paper_setting({"departures": []})]
+    notes += [f"{group.title}: {group.reports[0].paper_setting}" for group in groups.values()
+              if group.reports[0].paper_setting != paper_setting([])]
     # columns in the registry's order of environments, the default options first; rows as given
     envs, keys = list(specs()), list(groups)
     by_column = sorted(range(len(groups)), key=lambda g: (envs.index(keys[g][0]), keys[g][1] != "{}", keys[g][1]))
@@ -256,7 +195,7 @@ def leaderboard(reports: Sequence[dict[str, Any]], run_dirs: Sequence[str | Path
 
 
 def not_started(root: Path, started: Collection[Path],
-                known: dict[str, dict[str, Any]] | None = None) -> dict[Path, dict[str, Any]]:
+                known: dict[str, Report] | None = None) -> dict[Path, Report]:
     """The cells a suite manifest in `root` lists whose run directory is not among `started`
     (resolved paths), each as the report of a run with no record yet: on the board they are
     `unfinished 0/t`. {} where `root` holds no manifest; RunDirError for a bad one. `known`:

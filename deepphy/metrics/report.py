@@ -1,5 +1,10 @@
 """The paper-style report of a run directory: figures per run, mean and std over runs,
-overall and per task group, rendered as text, JSON, CSV, Markdown or LaTeX."""
+overall and per task group, as typed models (`Report`, `Section`, a run's figures) and
+rendered as text, JSON, CSV, Markdown or LaTeX.
+
+Which figures a report holds, and how its table shows them, is the metric registry's
+(deepphy.metrics.registry): the models below get a field per registered metric.
+"""
 
 from __future__ import annotations
 
@@ -8,16 +13,20 @@ import hashlib
 import io
 import json
 import re
-import statistics
 from collections import defaultdict
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from types import SimpleNamespace
+from typing import Any, Optional, Sequence
 
-from deepphy.config import RunConfig, is_human
+from pydantic import BaseModel, ConfigDict, create_model
+
+from deepphy.config import AgentSpec, RunConfig
 from deepphy.envs import EnvSpec, Task, get_spec
 from deepphy.metrics import figures as F
+from deepphy.metrics import registry as R
+from deepphy.metrics.registry import Given, TableColumns, count_cell
 from deepphy.plan import plan
-from deepphy.runs.records import AttemptRecord, episode_finished
+from deepphy.runs.records import AttemptRecord
 from deepphy.runs.store import check_records, read_config, read_records
 
 TEXT_WIDTH = 120  # characters: a wider text table is split into blocks of column groups
@@ -25,41 +34,134 @@ LATEX_WIDTH = 80  # characters of plain cell text per LaTeX block (~ an article'
 LATEX_PREAMBLE = r"\usepackage{booktabs}\usepackage{graphicx}"
 
 
-def _run_figures(eps: list[F.Episode], n_tasks: int, k_max: int, spec: EnvSpec, run: int,
-                 wm_records: list[AttemptRecord] | None) -> dict[str, Any]:
-    figures = spec.report
-    finished = [e for e in eps if e.finished]
-    solved = sum(e.solved for e in eps)
-    out: dict[str, Any] = {
-        "run": run,
-        "tasks": n_tasks,
-        "solved": solved,
-        "unsolved": len(finished) - solved,
-        "unfinished": n_tasks - len(finished),
-        "success_at": [F.success_at(eps, k, n_tasks) for k in range(1, k_max + 1)],
-        "avg_attempts": F.average_attempts(eps),
-        **F.totals(eps),
-    }
-    if spec.max_steps > 1:  # the whole curve (figures), and the protocol's checkpoints (tables)
-        out["success_by_step"] = [F.success_within_steps(eps, k, n_tasks) for k in range(1, spec.max_steps + 1)]
-        out["avg_steps"] = F.average_steps(eps)
-    if figures.step_checkpoints:
-        out["success_within_steps"] = {str(k): F.success_within_steps(eps, k, n_tasks) for k in figures.step_checkpoints}
-    if figures.auccess:
-        out["auccess"] = F.auccess(eps, n_tasks)
-    if wm_records is not None:
-        p = F.prediction_scores(wm_records)
-        out["wm"] = {"decisions": p.decisions, "stated": p.stated, "accuracy": p.accuracy,
-                     "predicted_success_failed": p.predicted_success_failed, "confusion": p.confusion}
-    if figures.stars:
-        s = F.stars(eps, n_tasks)
-        out["stars"] = {
-            "total": s.total,
-            "mean_all": s.mean_all,
-            "mean_completed": s.mean_completed,
-            "levels_with": {str(k): v for k, v in s.levels_with.items()},
-        }
-    return out
+# -- the typed report -------------------------------------------------------------------
+# Each model's fields in the order of the report's JSON; the metrics' fields are added to
+# them by `models()`, in the registry's order, so only the figures a report holds are set
+# (and written: `Report.to_json`).
+
+
+class Figures(BaseModel):
+    """The figures of one run, or their mean or std over runs (a field per run metric)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+class RunFigures(BaseModel):
+    """One run's figures (a field per run metric, after `run`)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    run: int
+
+
+class Section(BaseModel):
+    """The figures of the report's tasks, or of one task group (then a field per section metric)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    tasks: int
+    finished: int  # episodes
+    per_run: list[RunFigures]
+    mean: Figures
+    std: Figures
+
+    @property
+    def episodes_total(self) -> int:
+        return self.tasks * len(self.per_run)
+
+
+class Report(BaseModel):
+    """One run directory's report (then a field per report metric, and the task groups')."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    env: str
+    title: str
+    model: str
+    format: str
+    runs: int
+    seed: int
+    max_attempts: int
+    max_steps: int
+    step_noun: str
+    group_noun: str
+    env_options: dict[str, Any]
+    prompts: str
+    departures: list[str]  # how the set-up departs from the paper's; empty: the paper's
+    task_set: str
+    overall: Section
+    agent: Optional[AgentSpec] = None  # a user's agent: its entry point, arguments and package version
+    partial: bool = False  # the figures are over the finished episodes alone (a live view's estimate)
+
+    @property
+    def spec(self) -> EnvSpec:
+        return get_spec(self.env)
+
+    @property
+    def sections(self) -> list[tuple[str, Section]]:
+        """("all", overall), then each task group's, in the environment's order."""
+        return [("all", self.overall), *(getattr(self, "groups", None) or {}).items()]
+
+    @property
+    def setting(self) -> str:
+        """What distinguishes one run directory's rows from another's in a combined table."""
+        return setting_label(self.model, self.format, self.env_options, self.prompts)
+
+    @property
+    def options(self) -> dict[str, Any]:
+        """The environment options and, where they are not the paper's, the prompts: what makes
+        an environment setting (reports of one setting compare; others are never mixed)."""
+        return setting_options(self.env_options, self.prompts)
+
+    @property
+    def paper_setting(self) -> str:
+        """The report's set-up in words: the paper's, or how it departs from it."""
+        return paper_setting(self.departures)
+
+    def episodes_done(self, section: Section | None = None) -> tuple[int, int]:
+        """(finished episodes, all episodes: tasks x runs) of a section (overall by default)."""
+        sec = self.overall if section is None else section
+        return sec.finished, sec.tasks * self.runs
+
+    def sample_size(self, section: Section | None = None) -> str:
+        """n of a row: tasks x runs, and the episodes finished where not all are ("40x3", "40x3 (31 done)")."""
+        sec = self.overall if section is None else section
+        done, total = self.episodes_done(sec)
+        return f"{sec.tasks}x{self.runs}" + ("" if done == total else f" ({done} done)")
+
+    def to_json(self) -> dict[str, Any]:
+        """The report as `deepphy report --json` writes it: the figures it holds, nothing unset."""
+        return self.model_dump(exclude_unset=True)
+
+
+_models: dict[int, SimpleNamespace] = {}
+
+
+def models() -> SimpleNamespace:
+    """The report's models with a field per registered metric (Figures, RunFigures, Section,
+    Report): made again when the registry changes."""
+    version = R.version()
+    if version not in _models:
+        def fields(scope: R.Scope) -> dict[str, Any]:
+            return {m.key: (Optional[m.type], None) for m in R.metrics(scope)}
+
+        figures = create_model("Figures", __base__=Figures, **fields("run"))
+        run_figures = create_model("RunFigures", __base__=RunFigures, **fields("run"))
+        section = create_model("Section", __base__=Section, per_run=(list[run_figures], ...), mean=(figures, ...),
+                               std=(figures, ...), **fields("section"))
+        report = create_model("Report", __base__=Report, overall=(section, ...), **fields("report"),
+                              groups=(Optional[dict[str, section]], None))
+        _models.clear()
+        _models[version] = SimpleNamespace(Figures=figures, RunFigures=run_figures, Section=section, Report=report)
+    return _models[version]
+
+
+# -- building it ------------------------------------------------------------------------
+
+
+def _computed(scope: R.Scope, given: Given) -> dict[str, Any]:
+    """The figures of every metric of `scope` that applies, by key, in the registry's order."""
+    return {m.key: m.compute(given) for m in R.metrics(scope) if m.applies(given)}
 
 
 def _mean_std(per_run: list[dict[str, Any]]) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -83,16 +185,17 @@ def _mean_std(per_run: list[dict[str, Any]]) -> tuple[dict[str, Any], dict[str, 
     return means, stds
 
 
-def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int, spec: EnvSpec,
-             wm_records: list[AttemptRecord] | None, finished_only: bool = False) -> dict[str, Any]:
-    """Figures per run, then mean and std. `wm_records`: the records to score WM predictions on.
-    `finished_only`: every figure over the finished episodes alone (a run in progress: its
-    unfinished episodes are left out, not counted as unsolved); Pass@k over the tasks whose
-    runs have all finished."""
+def _section(config: RunConfig, spec: EnvSpec, eps: list[F.Episode], tasks: Sequence[Task], k_max: int,
+             records: list[AttemptRecord], finished_only: bool = False) -> dict[str, Any]:
+    """Figures per run, then mean and std, then the figures across runs. `records`: the
+    section's records (of finished episodes alone when `finished_only`). `finished_only`:
+    every figure over the finished episodes alone (a run in progress: its unfinished
+    episodes are left out, not counted as unsolved); Pass@k over the tasks whose runs have
+    all finished."""
+    runs = config.runs
     by_run: dict[int, list[F.Episode]] = defaultdict(list)
     for e in eps:
         by_run[e.run].append(e)
-    wanted = {t.id for t in tasks}
     finished = sum(e.finished for e in eps)
     if finished_only:
         by_run = defaultdict(list, {r: [e for e in x if e.finished] for r, x in by_run.items()})
@@ -103,16 +206,14 @@ def _section(eps: list[F.Episode], tasks: Sequence[Task], runs: int, k_max: int,
         pass_eps, pass_n = [e for e in eps if e.task in complete], len(complete)
     else:
         pass_eps, pass_n = eps, len(tasks)
-    per_run = [
-        _run_figures(by_run.get(r, []), len(by_run.get(r, [])) if finished_only else len(tasks), k_max, spec, r,
-                     None if wm_records is None else [x for x in wm_records if x.run == r and x.task in wanted])
-        for r in range(runs)
-    ]
+    per_run = []
+    for r in range(runs):
+        run_eps = by_run.get(r, [])
+        given = Given(config, spec, k_max, len(run_eps) if finished_only else len(tasks), run_eps, records, run=r)
+        per_run.append({"run": r, **_computed("run", given)})
     mean, std = _mean_std(per_run)
-    # Across runs, not per run: Pass@k for k = 1..runs (the paper's tables' Pass@K)
-    pass_at = [F.pass_at(pass_eps, k, runs, pass_n) for k in range(1, runs + 1)]
-    return {"tasks": len(tasks), "finished": finished, "per_run": per_run, "mean": mean, "std": std,
-            "pass_at": pass_at}
+    across = _computed("section", Given(config, spec, k_max, pass_n, pass_eps, records))
+    return {"tasks": len(tasks), "finished": finished, "per_run": per_run, "mean": mean, "std": std, **across}
 
 
 def task_set_digest(tasks: Sequence[Task]) -> str:
@@ -128,34 +229,18 @@ def departures(config: RunConfig) -> list[str]:
     return out + cls.Options.departures_from_paper(config.env_options)
 
 
-def human_time(records: Sequence[AttemptRecord], k_max: int) -> dict[str, Any]:
-    """A person's time to decide (`timing.decision_s`: the page's clock from the prompt shown
-    to the answer given; simulation not counted): per decision and per task (all the
-    decisions of a finished episode), median, and in total."""
-    per_decision = [s for r in records for s in r.timing.decision_s]
-    episodes: dict[tuple[str, int], list[AttemptRecord]] = defaultdict(list)
-    for r in records:
-        episodes[(r.task, r.run)].append(r)
-    per_task = [sum(s for r in rs for s in r.timing.decision_s) for rs in episodes.values()
-                if episode_finished(rs, k_max)]
-    return {"decisions": len(per_decision), "tasks": len(per_task),
-            "median_decision_s": statistics.median(per_decision) if per_decision else None,
-            "median_task_s": statistics.median(per_task) if per_task else None,
-            "total_s": sum(per_decision)}
-
-
 def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[AttemptRecord], k_max: int,
-                 finished_only: bool = False) -> dict[str, Any]:
+                 finished_only: bool = False) -> Report:
     """The report of a run's records. `finished_only`: the figures over finished episodes
     alone (a live view's partial estimate; `partial` in the report says so)."""
     spec = get_spec(config.env)
     wanted = {t.id for t in tasks}
     records = [r for r in records if r.task in wanted and r.run < config.runs]
     eps = [e for e in F.episodes(records, k_max) if e.task in wanted and e.run < config.runs]
-    wm = list(records) if config.format.value == "wm" else None
-    if wm is not None and finished_only:
+    shown = records
+    if finished_only:  # the figures' records: those of finished episodes
         done = {(e.task, e.run) for e in eps if e.finished}
-        wm = [r for r in wm if (r.task, r.run) in done]
+        shown = [r for r in records if (r.task, r.run) in done]
     report: dict[str, Any] = {
         "env": config.env,
         "title": spec.title,
@@ -171,41 +256,24 @@ def build_report(config: RunConfig, tasks: Sequence[Task], records: Sequence[Att
         "prompts": config.prompts,
         "departures": departures(config),
         "task_set": task_set_digest(tasks),
-        "overall": _section(eps, tasks, config.runs, k_max, spec, wm, finished_only),
+        "overall": _section(config, spec, eps, tasks, k_max, shown, finished_only),
     }
-    if config.agent is not None:  # a user's agent: its entry point, arguments and package version
-        report["agent"] = config.agent.model_dump(mode="json")
+    if config.agent is not None:
+        report["agent"] = config.agent
     if finished_only:
         report["partial"] = True
-    if is_human(config.model):
-        report["human_time"] = human_time(records, k_max)
+    report.update(_computed("report", Given(config, spec, k_max, len(tasks), eps, records)))
     groups = list(dict.fromkeys(t.group for t in tasks if t.group))  # in the environment's order (S, M, L)
     if len(groups) > 1:
         report["groups"] = {
-            g: _section([e for e in eps if e.group == g], [t for t in tasks if t.group == g], config.runs, k_max,
-                        spec, wm, finished_only)
+            g: _section(config, spec, [e for e in eps if e.group == g], [t for t in tasks if t.group == g], k_max,
+                        [r for r in shown if r.task in {t.id for t in tasks if t.group == g}], finished_only)
             for g in groups
         }
-    return report
+    return models().Report.model_validate(report)
 
 
-def episodes_done(report: dict[str, Any], section: dict[str, Any] | None = None) -> tuple[int, int]:
-    """(finished episodes, all episodes: tasks x runs) of a report's section (overall by default)."""
-    sec = report["overall"] if section is None else section
-    total = sec["tasks"] * report["runs"]
-    if "finished" in sec:
-        return sec["finished"], total
-    return total - sum(r["unfinished"] for r in sec["per_run"]), total  # a report made before `finished`
-
-
-def sample_size(report: dict[str, Any], section: dict[str, Any] | None = None) -> str:
-    """n of a row: tasks x runs, and the episodes finished where not all are ("40x3", "40x3 (31 done)")."""
-    sec = report["overall"] if section is None else section
-    done, total = episodes_done(report, sec)
-    return f"{sec['tasks']}x{report['runs']}" + ("" if done == total else f" ({done} done)")
-
-
-def report_of(run_dir) -> dict[str, Any]:
+def report_of(run_dir) -> Report:
     """The report of one run directory, as `deepphy report --json` prints it."""
     the_plan = plan(read_config(run_dir))
     records = read_records(run_dir)
@@ -213,164 +281,38 @@ def report_of(run_dir) -> dict[str, Any]:
     return build_report(the_plan.config, the_plan.tasks, records, the_plan.k_max)
 
 
-def mixed_task_sets(reports: Sequence[dict[str, Any]]) -> str | None:
+def mixed_task_sets(reports: Sequence[Report]) -> str | None:
     """A warning when reports to be compared evaluate different task sets, else None."""
-    if len({r["task_set"] for r in reports}) < 2:
+    if len({r.task_set for r in reports}) < 2:
         return None
-    sizes = {r["overall"]["tasks"] for r in reports}
+    sizes = {r.overall.tasks for r in reports}
     which = (f"n={sizes.pop()} each, other tasks" if len(sizes) == 1
-             else ", ".join(f"{setting(r)}: n={r['overall']['tasks']}" for r in reports))
+             else ", ".join(f"{r.setting}: n={r.overall.tasks}" for r in reports))
     return f"these runs evaluate different task sets ({which}): their rows are not comparable"
+
+
+def setting_label(model: str, format: str, env_options: dict[str, Any], prompts: str) -> str:
+    """A run's setting in a combined table's rows: its model, format and options."""
+    options = ",".join(f"{k}={v}" for k, v in sorted(setting_options(env_options, prompts).items()))
+    return f"{model} {format.upper()}" + (f" {options}" if options else "")
+
+
+def setting_options(env_options: dict[str, Any], prompts: str) -> dict[str, Any]:
+    """The environment options and, where they are not the paper's, the prompts."""
+    return {**env_options, **({} if prompts == "paper" else {"prompts": prompts})}
+
+
+def paper_setting(departures: list[str]) -> str:
+    """A set-up in words: the paper's, or how it departs from it."""
+    return "the paper's set-up" if not departures else f"departs from the paper: {', '.join(departures)}"
 
 
 # -- rendering --------------------------------------------------------------------------
 
 
-def _pct(m: float | None, s: float | None) -> str:
-    if m is None:
-        return "-"
-    return f"{100 * m:.1f}" + (f"±{100 * s:.1f}" if s else "")
-
-
-def _num(m: float | None, s: float | None, digits: int = 2) -> str:
-    if m is None:
-        return "-"
-    return f"{m:.{digits}f}" + (f"±{s:.{digits}f}" if s else "")
-
-
-def _count(m: float | None, s: float | None) -> str:
-    """A count: an integer, or the mean over runs with one decimal where it is not one."""
-    if m is None:
-        return "-"
-    return (f"{m:.0f}" if float(m).is_integer() else f"{m:.1f}") + (f"±{s:.1f}" if s else "")
-
-
-def setting(report: dict[str, Any]) -> str:
-    """What distinguishes one run directory's rows from another's in a combined table."""
-    options = ",".join(f"{k}={v}" for k, v in sorted(options_of(report).items()))
-    return f"{report['model']} {report['format'].upper()}" + (f" {options}" if options else "")
-
-
-def options_of(report: dict[str, Any]) -> dict[str, Any]:
-    """The environment options and, where they are not the paper's, the prompts: what makes
-    an environment setting (reports of one setting compare; others are never mixed)."""
-    prompts = report.get("prompts", "before-parity")
-    return {**report["env_options"], **({} if prompts == "paper" else {"prompts": prompts})}
-
-
-def paper_setting(report: dict[str, Any]) -> str:
-    """The report's set-up in words: the paper's, or how it departs from it."""
-    away = report.get("departures")
-    if away is None:  # a report made before reports said so
-        away = [f"prompts={report.get('prompts', 'before-parity')}"]
-    return "the paper's set-up" if not away else f"departs from the paper: {', '.join(away)}"
-
-
-@dataclass(frozen=True)
-class _Columns:
-    """A group of columns that belong together (split tables break only between groups)."""
-
-    headers: list[str]
-    key: list[str]  # what each column is, for the key under the table
-    cells: Callable[[dict[str, Any], dict[str, Any], dict[str, Any]], list[str]]  # (report, mean, std) -> cells
-    across_runs: Callable[[dict[str, Any], dict[str, Any]], list[str]] | None = None  # (report, section) -> cells
-
-    def row(self, report: dict[str, Any], section: dict[str, Any]) -> list[str]:
-        if self.across_runs is not None:
-            return self.across_runs(report, section)
-        return self.cells(report, section["mean"], section["std"])
-
-
-def _column_groups(reports: Sequence[dict[str, Any]]) -> list[_Columns]:
-    k_max = max(r["max_attempts"] for r in reports)
-    means = [r["overall"]["mean"] for r in reports]
-    per_runs = [x for r in reports for x in r["overall"]["per_run"]]
-    out: list[_Columns] = []
-    if k_max > 1:
-        out.append(_Columns(
-            [f"Att.{k}" for k in range(1, k_max + 1)] + ["AvgAtt"],
-            ["Att.k: tasks solved within k attempts (%)", "AvgAtt: attempts used by the solved tasks"],
-            lambda r, m, s: [_pct(m["success_at"][i], s["success_at"][i]) if i < r["max_attempts"] else ""
-                             for i in range(k_max)] + [_num(m["avg_attempts"], s["avg_attempts"])]))
-    else:
-        out.append(_Columns(["Success"], ["Success: tasks solved (%)"],
-                            lambda r, m, s: [_pct(m["success_at"][0], s["success_at"][0])]))
-    runs = max(r["runs"] for r in reports)
-    if runs > 1 and k_max > 1:  # beside Att.k, as the paper's tables; one run: Pass@1 is Att.K
-        out.append(_Columns(
-            [f"Pass@{k}" for k in range(1, runs + 1)],
-            ["Pass@k: tasks solved within the attempt budget in at least one of k runs (%, the paper's Pass@k)"],
-            lambda r, m, s: [], across_runs=lambda r, sec: [
-                _pct(sec["pass_at"][k], None) if k < len(sec.get("pass_at", [])) else "-" for k in range(runs)]))
-    checkpoints = next((list(m["success_within_steps"]) for m in means if "success_within_steps" in m), None)
-    if checkpoints:
-        noun = reports[0]["step_noun"]
-        cap = noun.capitalize()
-
-        def steps(r, m, s):
-            within = m.get("success_within_steps", {})
-            return ([_pct(within[c], s["success_within_steps"][c]) if c in within else "-" for c in checkpoints]
-                    + [_num(m.get("avg_steps"), s.get("avg_steps"))])
-
-        out.append(_Columns([f"{cap}{k}" for k in checkpoints] + [f"Avg{cap}s"],
-                            [f"{cap}k: tasks solved within k {noun}s (%)", f"Avg{cap}s: {noun}s used by the solved tasks"],
-                            steps))
-    auccess = any("auccess" in m for m in means)
-    out.append(_Columns(
-        ["Solved", "Invalid"] + (["AUCCESS"] if auccess else []),
-        ["Solved: tasks solved", "Invalid: attempts that ended on an invalid action"]
-        + (["AUCCESS: PHYRE's area under the success curve, invalid attempts not counted (%)"] if auccess else []),
-        lambda r, m, s: [_count(m["solved"], s["solved"]), _count(m["invalid_attempts"], s["invalid_attempts"])]
-        + ([_pct(m.get("auccess"), s.get("auccess"))] if auccess else [])))
-    if any("stars" in m for m in means):
-        zero = any(x["stars"]["levels_with"].get("0") for x in per_runs if "stars" in x)  # 0-star wins exist
-        counts = (["0"] if zero else []) + ["1", "2", "3"]
-
-        def stars(r, m, s):
-            st, sd = m.get("stars"), s.get("stars")
-            if st is None:
-                return ["-"] * (3 + len(counts))
-            return ([_count(st["total"], sd["total"]), _num(st["mean_all"], sd["mean_all"]),
-                     _num(st["mean_completed"], sd["mean_completed"])]
-                    + [_count(st["levels_with"][c], sd["levels_with"][c]) for c in counts])
-
-        out.append(_Columns(
-            ["Stars", "Stars/lvl", "Stars/won"] + [f"{c}*" for c in counts],
-            ["Stars: stars earned", "Stars/lvl: stars per level", "Stars/won: stars per level won",
-             "n*: levels won with n stars"], stars))
-    if any("wm" in m for m in means):  # WM predicted outcomes: accuracy, and how often a predicted success failed
-        def wm(r, m, s):
-            w, wsd = m.get("wm"), s.get("wm")
-            return ["-", "-"] if w is None else [_pct(w["accuracy"], wsd["accuracy"]),
-                                                 _pct(w["predicted_success_failed"], wsd["predicted_success_failed"])]
-
-        out.append(_Columns(["PredAcc", "PredS->F"],
-                            ["PredAcc: WM outcome predictions that came true (%)",
-                             "PredS->F: predicted successes that failed (%)"], wm))
-    if any(x["model_errors"] or x["retries"] for x in per_runs):
-        out.append(_Columns(["ModelErr", "Retries"],
-                            ["ModelErr: model requests that failed for good", "Retries: model request retries"],
-                            lambda r, m, s: [_count(m["model_errors"], s["model_errors"]),
-                                             _count(m["retries"], s["retries"])]))
-    if any("human_time" in r for r in reports):  # a person's time to decide: never a model's latency
-        def human(r, sec):
-            h = r.get("human_time")
-            if h is None or sec is not r["overall"]:
-                return ["-", "-", "-"]
-            return [_num(h["median_decision_s"], None, 1), _num(h["median_task_s"], None, 1),
-                    _num(h["total_s"] / 60, None, 1)]
-
-        out.append(_Columns(["Human s/dec", "Human s/task", "Human min"],
-                            ["Human s/dec, s/task: a person's time to decide (the page's clock, simulation not "
-                             "counted), median per decision and per finished task", "Human min: the person's time in all"],
-                            lambda r, m, s: [], across_runs=human))
-    if any(x["cost_usd"] or x["input_tokens"] for x in per_runs):
-        out.append(_Columns(["TokensIn", "TokensOut", "Cost$"],
-                            ["TokensIn/TokensOut: tokens sent and received", "Cost$: model cost (US dollars)"],
-                            lambda r, m, s: [_num(m["input_tokens"], s["input_tokens"], 0),
-                                             _num(m["output_tokens"], s["output_tokens"], 0),
-                                             _num(m["cost_usd"], s["cost_usd"], 4)]))
-    return out
+def column_groups(reports: Sequence[Report]) -> list[TableColumns]:
+    """The table's column groups for these reports: each metric's, in their places."""
+    return [group for m in R.by_place() if m.table is not None and (group := m.table(reports)) is not None]
 
 
 @dataclass
@@ -406,8 +348,8 @@ class _Table:
         return [self.header[c] for c in columns], [[r[c] for c in columns] for r in self.rows]
 
 
-def _table(reports: Sequence[dict[str, Any]]) -> _Table:
-    groups = _column_groups(reports)
+def _table(reports: Sequence[Report]) -> _Table:
+    groups = column_groups(reports)
     combined = len(reports) > 1
     header = (["setting"] if combined else []) + ["group", "n"]
     labels = len(header)
@@ -417,47 +359,47 @@ def _table(reports: Sequence[dict[str, Any]]) -> _Table:
         header += g.headers
     rows = []
     for report in reports:
-        for name, sec in [("all", report["overall"]), *report.get("groups", {}).items()]:
-            rows.append(([setting(report)] if combined else []) + [name, sample_size(report, sec)]
-                        + [c for g in groups for c in g.row(report, sec)])
+        for name, sec in report.sections:
+            rows.append(([report.setting] if combined else []) + [name, report.sample_size(sec)]
+                        + [c for g in groups for c in g.cells(report, sec)])
     return _Table(header, rows, labels, columns, [k for g in groups for k in g.key])
 
 
-def table(reports: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
+def table(reports: Sequence[Report]) -> tuple[list[str], list[list[str]]]:
     """Header and rows: per report, one row for all tasks, then one per group. Reports of
     several run directories (same environment) share one table, labelled by their setting."""
     t = _table(reports)
     return t.header, t.rows
 
 
-def table_key(reports: Sequence[dict[str, Any]]) -> str:
+def table_key(reports: Sequence[Report]) -> str:
     """What the table's columns are, in one line (shown under every rendering of it)."""
-    partial = any(r.get("partial") for r in reports)
+    partial = any(r.partial for r in reports)
     return " · ".join([*_table(reports).keys, "n: tasks x runs (and the episodes done, where not all are)",
                        "values: mean±std over runs; counts per run"]
                       + (["partial: over the finished episodes only"] if partial else []))
 
 
-def _as_list(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    return [reports] if isinstance(reports, dict) else list(reports)
+def _as_list(reports: Report | Sequence[Report]) -> list[Report]:
+    return [reports] if isinstance(reports, Report) else list(reports)
 
 
-def render_text(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
+def render_text(reports: Report | Sequence[Report]) -> str:
     reports = _as_list(reports)
     t = _table(reports)
     lines = []
     for report in reports:
-        done = sum(r["tasks"] - r["unfinished"] for r in report["overall"]["per_run"])
-        total = report["overall"]["tasks"] * report["runs"]
-        lines.append(f"{report['title']} · {setting(report)} · {report['runs']} run(s), seed {report['seed']} · "
-                     f"episodes complete {done}/{total} · {paper_setting(report)}")
+        done = sum(r.tasks - r.unfinished for r in report.overall.per_run)
+        total = report.overall.tasks * report.runs
+        lines.append(f"{report.title} · {report.setting} · {report.runs} run(s), seed {report.seed} · "
+                     f"episodes complete {done}/{total} · {report.paper_setting}")
     note = mixed_task_sets(reports)
     if note:
         lines.append(f"note: {note}")
     for report in reports:
-        done, total = episodes_done(report)
-        if done < total and not report.get("partial"):
-            lines.append(f"note: {setting(report)}: partial, {done} of {total} episodes finished; the unfinished count "
+        done, total = report.episodes_done()
+        if done < total and not report.partial:
+            lines.append(f"note: {report.setting}: partial, {done} of {total} episodes finished; the unfinished count "
                          "as unsolved (their success figures can only rise)")
     for columns in t.blocks(TEXT_WIDTH):
         header, rows = t.block(columns)
@@ -468,16 +410,17 @@ def render_text(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
         lines += ["", fmt(header), fmt(["-" * w for w in widths]), *(fmt(r) for r in rows)]
     lines += ["", *_wrap(table_key(reports).split(" · "), TEXT_WIDTH)]
     for report in reports:
-        wm = report["overall"]["mean"].get("wm")
+        wm = report.overall.mean.wm
         if wm is not None:
-            c = wm["confusion"]
+            c = wm.confusion
             lines += [
-                f"WM predicted outcomes ({setting(report)}): {_count(wm['stated'], None)} of "
-                f"{_count(wm['decisions'], None)} decisions stated one (mean per run); decisions by prediction and result:",
-                f"  predicted success: {_count(c['success']['success'], None)} solved, "
-                f"{_count(c['success']['failure'], None)} failed",
-                f"  predicted failure: {_count(c['failure']['success'], None)} solved, "
-                f"{_count(c['failure']['failure'], None)} failed",
+                f"WM predicted outcomes ({report.setting}): {count_cell(wm.stated, None)} of "
+                f"{count_cell(wm.decisions, None)} decisions stated one (mean per run); decisions by prediction and "
+                "result:",
+                f"  predicted success: {count_cell(c['success']['success'], None)} solved, "
+                f"{count_cell(c['success']['failure'], None)} failed",
+                f"  predicted failure: {count_cell(c['failure']['success'], None)} solved, "
+                f"{count_cell(c['failure']['failure'], None)} failed",
             ]
     return "\n".join(lines)
 
@@ -493,7 +436,7 @@ def _wrap(items: list[str], width: int) -> list[str]:
     return lines
 
 
-def render_markdown(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
+def render_markdown(reports: Report | Sequence[Report]) -> str:
     reports = _as_list(reports)
     header, rows = table(reports)
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
@@ -501,7 +444,7 @@ def render_markdown(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
     return "\n".join([*lines, "", table_key(reports)])
 
 
-def render_csv(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
+def render_csv(reports: Report | Sequence[Report]) -> str:
     header, rows = table(_as_list(reports))
     buf = io.StringIO()
     w = csv.writer(buf)
@@ -527,15 +470,15 @@ def _latex_cell(text: str) -> str:
     return latex_escape(text).replace("*", r"$\star$")
 
 
-def _latex_caption(reports: list[dict[str, Any]]) -> str:
+def _latex_caption(reports: list[Report]) -> str:
     """Environment, setting(s), runs and seed, and the columns' key."""
-    runs = "/".join(str(r) for r in dict.fromkeys(r["runs"] for r in reports))
-    seeds = "/".join(str(r) for r in dict.fromkeys(r["seed"] for r in reports))
-    who = "; ".join(f"{setting(r)} ({paper_setting(r)})" for r in reports)
-    return _latex_cell(f"{reports[0]['title']}: {who}; {runs} run(s), seed {seeds}. {table_key(reports)}.")
+    runs = "/".join(str(r) for r in dict.fromkeys(r.runs for r in reports))
+    seeds = "/".join(str(r) for r in dict.fromkeys(r.seed for r in reports))
+    who = "; ".join(f"{r.setting} ({r.paper_setting})" for r in reports)
+    return _latex_cell(f"{reports[0].title}: {who}; {runs} run(s), seed {seeds}. {table_key(reports)}.")
 
 
-def render_latex(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
+def render_latex(reports: Report | Sequence[Report]) -> str:
     """A `table` float: caption (environment, model, format, runs, the columns' key), then
     the report's table as booktabs `tabular`s, split between column groups where it is
     wide and stacked in one box, scaled down (all by the same factor) to the line width
@@ -543,7 +486,7 @@ def render_latex(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
     (LATEX_PREAMBLE)."""
     reports = _as_list(reports)
     t = _table(reports)
-    label = re.sub(r"[^a-z0-9]+", "-", " ".join([reports[0]["env"], *(setting(r) for r in reports)]).lower())
+    label = re.sub(r"[^a-z0-9]+", "-", " ".join([reports[0].env, *(r.setting for r in reports)]).lower())
     lines = [
         f"% deepphy report --latex; preamble: {LATEX_PREAMBLE}",
         r"\begin{table}[htbp]",
@@ -574,6 +517,7 @@ def _is_figure(cell: str) -> bool:
     return cell in ("", "-") or cell.replace("±", "").replace(".", "").replace("-", "").isdigit()
 
 
-def render_json(reports: dict[str, Any] | Sequence[dict[str, Any]]) -> str:
+def render_json(reports: Report | Sequence[Report]) -> str:
     """One report as an object; several as a list."""
-    return json.dumps(reports if isinstance(reports, dict) or len(reports) > 1 else reports[0], indent=2)
+    reports = _as_list(reports)
+    return json.dumps(reports[0].to_json() if len(reports) == 1 else [r.to_json() for r in reports], indent=2)
