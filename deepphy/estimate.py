@@ -26,9 +26,9 @@ max_tokens. A suite runs all its endpoints at once, so its figure is the slowest
 sum.
 
 Image tokens follow each provider's published rule (its `ProviderSpec.image_tokens`, with
-its source and the date it was read); text tokens are estimated as characters / 4 (CHARS_PER_TOKEN),
-the usual rule of thumb for English with these tokenizers: the figure is an estimate,
-not a count.
+its source and the date it was read); text tokens are estimated as characters / 4
+(CHARS_PER_TOKEN), the usual rule of thumb for English with these tokenizers: the figure is
+an estimate, not a count.
 """
 
 from __future__ import annotations
