@@ -25,10 +25,10 @@ the limits allow); `time~`: the expected requests, each reply taking REPLY_S and
 max_tokens. A suite runs all its endpoints at once, so its figure is the slowest endpoint's
 sum.
 
-Image tokens follow each provider's published rule (IMAGE_TOKEN_RULES, with its source
-and the date it was read); text tokens are estimated as characters / 4 (CHARS_PER_TOKEN),
-the usual rule of thumb for English with these tokenizers: the figure is an estimate,
-not a count.
+Image tokens follow each provider's published rule (its `ProviderSpec.image_tokens`, with
+its source and the date it was read); text tokens are estimated as characters / 4
+(CHARS_PER_TOKEN), the usual rule of thumb for English with these tokenizers: the figure is
+an estimate, not a count.
 """
 
 from __future__ import annotations
@@ -37,14 +37,13 @@ import asyncio
 import math
 import struct
 from dataclasses import dataclass, replace
-from typing import Callable
 
 from deepphy.agent import declared
 from deepphy.agents import MockModel, endpoint_config
 from deepphy.chat import Image, ImagePart, Message, TextPart
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs.base import Planning
-from deepphy.models.config import ModelConfig, Provider, RateLimits
+from deepphy.models.config import ModelConfig, RateLimits
 from deepphy.models.limiter import WINDOW_S
 from deepphy.plan import RunPlan, plan
 from deepphy.prompts import PastAttempt, PastStep, build_messages
@@ -54,40 +53,6 @@ from deepphy.seeding import seeded_rng
 CHARS_PER_TOKEN = 4  # text tokens ~ characters / 4 (OpenAI's and Anthropic's rule of thumb)
 DEFAULT_SAMPLE = 3  # tasks per run whose prompts are rendered and measured
 REPLY_S = 10.0  # time~: how long a reply is assumed to take (a typical VLM answer; no model is called)
-
-
-def _openai_image_tokens(w: int, h: int) -> int:
-    """OpenAI, detail "high" (GPT-4o / GPT-4.1 family): fit in 2048x2048, then the short
-    side to at most 768; 170 tokens per 512-px tile plus 85."""
-    scale = min(1.0, 2048 / max(w, h))
-    w, h = w * scale, h * scale
-    scale = min(1.0, 768 / min(w, h))
-    w, h = w * scale, h * scale
-    return 85 + 170 * math.ceil(w / 512) * math.ceil(h / 512)
-
-
-def _anthropic_image_tokens(w: int, h: int) -> int:
-    """Anthropic: width x height / 750, after resizing the long edge to at most 1568 px."""
-    scale = min(1.0, 1568 / max(w, h))
-    return math.ceil(w * scale * h * scale / 750)
-
-
-def _gemini_image_tokens(w: int, h: int) -> int:
-    """Gemini 2.x: 258 tokens for an image of at most 384x384, else 258 per 768x768 tile."""
-    if w <= 384 and h <= 384:
-        return 258
-    return 258 * math.ceil(w / 768) * math.ceil(h / 768)
-
-
-# Read on 2026-11-23 from the providers' vision guides: platform.openai.com/docs/guides/images-vision
-# ("Calculating costs"), docs.anthropic.com/en/docs/build-with-claude/vision ("Calculate image
-# costs"), ai.google.dev/gemini-api/docs/tokens ("Multimodal tokens"). Self-hosted OpenAI-compatible
-# servers (vLLM, SGLang) count with their own processor: the OpenAI rule is then an estimate.
-IMAGE_TOKEN_RULES: dict[Provider, Callable[[int, int], int]] = {
-    Provider.OPENAI: _openai_image_tokens,
-    Provider.ANTHROPIC: _anthropic_image_tokens,
-    Provider.GEMINI: _gemini_image_tokens,
-}
 
 
 def png_size(image: Image) -> tuple[int, int]:
@@ -249,7 +214,7 @@ def estimate(config: RunConfig, models_file: str | None = None, sample: int = DE
     per_step = [m.per_step for m in measured]
 
     cap = endpoint.resolved_max_images if endpoint is not None else None
-    rule = IMAGE_TOKEN_RULES[endpoint.provider] if endpoint is not None else None
+    rule = endpoint.spec.image_tokens if endpoint is not None else None
 
     def tokens(size: PromptSize, n_images: int) -> float:
         """Input tokens of a request of this size, `n_images` of its images sent."""

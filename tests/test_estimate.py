@@ -10,21 +10,24 @@ import pytest
 from dashboard_support import IPHYRE_TASKS, mock_run
 from deepphy.cli import main
 from deepphy.config import RunConfig
-from deepphy.estimate import _anthropic_image_tokens, _gemini_image_tokens, _openai_image_tokens, estimate
+from deepphy.estimate import estimate
+from deepphy.models.providers import provider_spec
 from deepphy.chat import ImagePart
 from deepphy.runs.store import read_prompt, read_records
 
 
 def test_image_token_rules_match_the_providers_worked_examples():
+    openai, anthropic, gemini = (
+        provider_spec(name).image_tokens for name in ("openai", "anthropic", "gemini"))
     # OpenAI's guide: 1024x1024 high detail -> 765; 2048x4096 -> 1105
-    assert _openai_image_tokens(1024, 1024) == 765
-    assert _openai_image_tokens(2048, 4096) == 1105
+    assert openai(1024, 1024) == 765
+    assert openai(2048, 4096) == 1105
     # Anthropic's table: 1092x1092 -> ~1590 (w*h/750); larger images are scaled to 1568 px first
-    assert _anthropic_image_tokens(1092, 1092) == 1590
-    assert _anthropic_image_tokens(3136, 3136) == _anthropic_image_tokens(1568, 1568)
+    assert anthropic(1092, 1092) == 1590
+    assert anthropic(3136, 3136) == anthropic(1568, 1568)
     # Gemini: 258 up to 384x384, else 258 per 768x768 tile
-    assert _gemini_image_tokens(384, 384) == 258
-    assert _gemini_image_tokens(1000, 700) == 2 * 258
+    assert gemini(384, 384) == 258
+    assert gemini(1000, 700) == 2 * 258
 
 
 def test_bounds_hold_for_a_real_run(ray_cluster, tmp_path_factory):

@@ -58,7 +58,7 @@ async def complete_once(config: ModelConfig, request, limiter=None):
 def test_shipped_models_file_loads_and_holds_no_keys():
     models = load_models()
     assert {"gpt-4o", "claude-sonnet-4", "gemini-2.5-pro", "qwen2.5-vl-72b", "local-mock"} <= set(models)
-    assert {m.provider.value for m in models.values()} == {"openai", "anthropic", "gemini"}
+    assert {m.provider for m in models.values()} == {"openai", "anthropic", "gemini"}
     for m in models.values():
         assert m.api_key_env is None or m.api_key_env.isupper()
     text = open(__import__("deepphy.models.config", fromlist=["x"]).DEFAULT_MODELS_FILE).read()

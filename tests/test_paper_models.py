@@ -49,7 +49,7 @@ def at_server(name: str, server, **changes) -> ModelConfig:
     """The shipped entry `name`, pointed at the local server (which answers with MOCK)."""
     entry = load_models()[name]
     return entry.model_copy(update={
-        "base_url": server.url + BASES[entry.provider.value], "send_context": True,
+        "base_url": server.url + BASES[entry.provider], "send_context": True,
         "api_key_env": entry.api_key_env and KEY_ENV, **changes,
     })
 
@@ -197,7 +197,7 @@ def test_a_paper_entry_round_trips_through_the_server_in_its_wire_format(server,
     response = complete(config, request)
     assert response.text == asyncio.run(MockModel().complete(request)).text  # the server's MOCK answer, parsed
     (record,) = server.bodies()
-    body, provider = record["body"], config.provider.value
+    body, provider = record["body"], config.provider
     jsonschema.validate(body, SCHEMAS[provider])
     assert _images(provider, body) == [p.image.png for m in request.messages for p in m.content if p.type == "image"]
     if provider == "gemini":  # the entry's model id: in the path for Gemini, in the body for the others

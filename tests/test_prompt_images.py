@@ -22,7 +22,7 @@ from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.chat import ImagePart
 from deepphy.envs import get_spec
 from deepphy.export import CHAT_FIELDS, CHAT_FILE, DATA_FILE, export
-from deepphy.models.providers import OpenAIChatClient
+from deepphy.models.clients import OpenAIChatClient
 from deepphy.models.wire import CONTEXT_HEADER, decode_context
 from deepphy.prompts.base import CURRENT_OBSERVATION
 from deepphy.runner import evaluate

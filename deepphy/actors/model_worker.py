@@ -11,17 +11,21 @@ from deepphy.agents import endpoint_config, make_agent
 from deepphy.config import AgentSpec
 from deepphy.envs import EnvSpec, register
 from deepphy.models import ModelRequest, ModelResponse
+from deepphy.models.providers import ProviderSpec, providers, register_provider
 
 
 class ModelWorkerImpl:
     def __init__(self, model: str, spec: EnvSpec | Sequence[EnvSpec], models_file: str | None = None,
-                 agent: AgentSpec | None = None) -> None:
+                 agent: AgentSpec | None = None, provider_specs: Sequence[ProviderSpec] = ()) -> None:
         from deepphy.actors.rate_limiter import RayLimiter  # imports Ray: only a worker on Ray makes one
 
         # The run's environments, also those not of deepphy's own (MOCK samples their spaces; an
         # agent's structured action is written in their syntax). A suite's agent serves several.
         for one in [spec] if isinstance(spec, EnvSpec) else spec:
             register(one)
+        # The driver's providers, also those not of deepphy's own: the models file is read here.
+        for provider in provider_specs:
+            register_provider(provider)
 
         if agent is not None:
             # Every worker of the cluster consults each endpoint's one shared limiter actor.
@@ -72,7 +76,7 @@ def make_model_worker(model: str, spec: EnvSpec | Sequence[EnvSpec], *, name: st
     # in-flight calls retried by Ray.
     return ModelWorker.options(
         max_restarts=5, max_task_retries=3, max_concurrency=max_concurrency, name=name, **options,
-    ).remote(model, spec, models_file, agent)
+    ).remote(model, spec, models_file, agent, list(providers().values()))
 
 
 ModelWorker = remote_class(ModelWorkerImpl)  # one class per process (see env_worker.EnvWorker)

@@ -1,4 +1,5 @@
-"""Model endpoints over HTTP: configs (models files), provider clients, rate limiting.
+"""Model endpoints over HTTP: configs (models files), providers (deepphy.models.providers),
+their clients, rate limiting.
 
 Knows nothing of environments, Ray or actors: the model worker injects the cluster's
 shared limiter. Agents by name (baselines included) are made in deepphy/agents.py.
@@ -32,10 +33,9 @@ def model_config(name: str, models_file: str | Path | None = None) -> ModelConfi
 
 
 def client_from_config(config: ModelConfig, limiter: Limiter | None = None) -> ModelClient:
-    """The client for a config; reads its key from the environment (MissingKey if unset)."""
-    from deepphy.models.providers import CLIENTS  # the HTTP clients (aiohttp): only when a client is built
-
-    return CLIENTS[config.provider.value](config, limiter=limiter)
+    """The client for a config, of its provider's class; reads its key from the environment
+    (MissingKey if unset)."""
+    return config.spec.load_client()(config, limiter=limiter)
 
 
 __all__ = [

@@ -3,15 +3,16 @@
 A models file holds no secrets: each entry names the ENVIRONMENT VARIABLE that holds its
 key (`api_key_env`), and the key is read from the environment when a client is built.
 
-Defaults live in exactly one place: the field defaults below, plus `PROVIDER_DEFAULTS`
-for what depends on the provider (base URL, images per request). An entry in a models
-file states only what differs; `ModelConfig.resolved()` fills the rest.
+Defaults live in exactly one place: the field defaults below, plus the provider's
+`ProviderSpec` (deepphy/models/providers/) for what depends on the provider (base URL,
+images per request, and where it declares them the key's variable and rate limits). An
+entry in a models file states only what differs.
 
 File shape::
 
     models:
       - name: gpt-4o                 # what `deepphy run --model` names
-        provider: openai             # openai | anthropic | gemini
+        provider: openai             # a registered provider (built in: openai, anthropic, gemini)
         model: gpt-4o-2024-08-06     # the provider's model id
         api_key_env: OPENAI_API_KEY  # the NAME of the variable, never the key
         rate_limits: {requests_per_min: 500, tokens_per_min: 300000, max_concurrent: 64}
@@ -29,36 +30,20 @@ import datetime
 import ipaddress
 import os
 import re
-from enum import Enum
 from pathlib import Path
 from typing import Any, Literal
 from urllib.parse import urlparse
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from deepphy.messages import one_line, validation_message
+from deepphy.models.limiter import RateLimits
+from deepphy.models.providers import UnknownProvider, provider_spec
+from deepphy.models.providers.spec import KEY_VARIABLE, ProviderSpec
 
 DEFAULT_MODELS_FILE = Path(__file__).with_name("models.yaml")
 MODELS_FILE_ENV = "DEEPPHY_MODELS_FILE"  # used when no file is given explicitly
-
-
-class Provider(str, Enum):
-    OPENAI = "openai"  # Chat Completions: OpenAI, vLLM, SGLang, any compatible endpoint
-    ANTHROPIC = "anthropic"  # Messages API
-    GEMINI = "gemini"  # Gemini API generateContent
-
-
-# What depends on the provider. Base URLs include the API version; the client appends
-# /chat/completions (OpenAI), /messages (Anthropic), /models/<id>:generateContent (Gemini). `max_images` is the per-request image cap we apply by
-# default: Anthropic documents 100 images per API request; OpenAI-compatible servers
-# vary widely (vLLM's limit_mm_per_prompt is set per deployment), so 50 is a cautious
-# default to override per model; Gemini accepts thousands.
-PROVIDER_DEFAULTS: dict[Provider, dict[str, Any]] = {
-    Provider.OPENAI: {"base_url": "https://api.openai.com/v1", "max_images": 50},
-    Provider.ANTHROPIC: {"base_url": "https://api.anthropic.com/v1", "max_images": 100},
-    Provider.GEMINI: {"base_url": "https://generativelanguage.googleapis.com/v1beta", "max_images": 3000},
-}
 
 
 TOTAL_SLACK_S = 60.0  # a request's default deadline: one whole try plus this (see Timeouts)
@@ -66,26 +51,6 @@ TOTAL_SLACK_S = 60.0  # a request's default deadline: one whole try plus this (s
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class RateLimits(_Strict):
-    """Limits of one endpoint, enforced together by one limiter shared by all workers."""
-
-    requests_per_min: float | None = Field(None, gt=0)
-    tokens_per_min: int | None = Field(None, gt=0, description="estimated input + max_tokens, corrected by actual usage")
-    max_concurrent: int | None = Field(None, ge=1)
-    window_margin_s: float = Field(
-        1.0,
-        ge=0,
-        description="the 60 s window is widened by this much, so jitter between the limiter's grant "
-        "and the provider's arrival cannot put more than the limit in any 60 s window",
-    )
-    burst: int = Field(1, ge=1, description="requests that may go at once after an idle period (pacing)")
-    key: str | None = Field(None, description="limiter key; entries sharing an endpoint/account share a key")
-
-    @property
-    def enabled(self) -> bool:
-        return any(v is not None for v in (self.requests_per_min, self.tokens_per_min, self.max_concurrent))
 
 
 class Timeouts(_Strict):
@@ -163,11 +128,12 @@ MODEL_NAME = r"^[A-Za-z0-9._:+-]+$"
 
 class ModelConfig(_Strict):
     name: str = Field(pattern=MODEL_NAME)
-    provider: Provider
+    provider: str = Field(description="a registered provider's name (deepphy.models.providers)")
     model: str = Field(description="the provider's model id")
     base_url: str | None = Field(None, description="default: the provider's public endpoint")
-    api_key_env: str | None = Field(None, pattern=r"^[A-Za-z_][A-Za-z0-9_]*$", description="NAME of the env var with the key")
-    rate_limits: RateLimits = RateLimits()
+    api_key_env: str | None = Field(None, pattern=KEY_VARIABLE, description="NAME of the env var with the key; "
+                                    "default: the provider's (none for the built-in ones)")
+    rate_limits: RateLimits = Field(RateLimits(), description="default: the provider's (none for the built-in ones)")
     timeouts: Timeouts = Timeouts()
     retry: RetryPolicy = RetryPolicy()
     price: Pricing = Pricing()
@@ -189,6 +155,35 @@ class ModelConfig(_Strict):
     )
     retirement: Retirement | None = Field(None, description="set once the provider has announced its retirement")
 
+    @field_validator("provider")
+    @classmethod
+    def _registered(cls, name: str) -> str:
+        try:
+            provider_spec(name)
+        except UnknownProvider as e:
+            raise ValueError(str(e)) from None
+        return name
+
+    @model_validator(mode="before")
+    @classmethod
+    def _provider_defaults(cls, data: Any) -> Any:
+        """The key's variable and the rate limits an entry leaves out are its provider's, where
+        it declares them (`api_key_env: null` says "no key" whatever the provider's default)."""
+        if not isinstance(data, dict) or not isinstance(data.get("provider"), str):
+            return data  # the field validators say what is wrong
+        try:
+            spec = provider_spec(data["provider"])
+        except UnknownProvider:
+            return data  # said by `_registered`
+        defaults = {"api_key_env": spec.api_key_env, "rate_limits": spec.rate_limits}
+        return {**{k: v for k, v in defaults.items() if v != cls.model_fields[k].default}, **data}
+
+    @model_validator(mode="after")
+    def _has_an_endpoint(self) -> "ModelConfig":
+        if self.base_url is None and self.spec.base_url is None:
+            raise ValueError(f"{self.name}: provider {self.provider} has no public endpoint: set base_url")
+        return self
+
     @model_validator(mode="after")
     def _context_only_to_loopback(self) -> "ModelConfig":
         if self.send_context and not is_loopback_url(self.resolved_base_url):
@@ -196,12 +191,17 @@ class ModelConfig(_Strict):
         return self
 
     @property
+    def spec(self) -> ProviderSpec:
+        """Its provider's declaration."""
+        return provider_spec(self.provider)
+
+    @property
     def resolved_base_url(self) -> str:
-        return (self.base_url or PROVIDER_DEFAULTS[self.provider]["base_url"]).rstrip("/")
+        return (self.base_url or self.spec.base_url or "").rstrip("/")
 
     @property
     def resolved_max_images(self) -> int:
-        return self.max_images if self.max_images is not None else PROVIDER_DEFAULTS[self.provider]["max_images"]
+        return self.max_images if self.max_images is not None else self.spec.max_images
 
     @property
     def limiter_key(self) -> str:

@@ -1,7 +1,7 @@
 """The HTTP client shared by all providers: limiter, retries, deadlines, usage and cost, secrecy.
 
 A provider subclass says only how to build its request and read its response
-(deepphy/models/providers.py). Everything else is here:
+(deepphy/models/clients.py, or a plug-in's). Everything else is here:
 - one aiohttp session per event loop; the connection pool is sized by max_concurrent
   (unbounded when no limit is set);
 - every HTTP try takes a grant from the endpoint's limiter and returns it with the tokens

@@ -27,9 +27,31 @@ import time
 from collections import deque
 from typing import Callable, Protocol
 
-from deepphy.models.config import RateLimits
+from pydantic import BaseModel, ConfigDict, Field
 
 WINDOW_S = 60.0
+
+
+class RateLimits(BaseModel):
+    """Limits of one endpoint, enforced together by one limiter shared by all workers."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    requests_per_min: float | None = Field(None, gt=0)
+    tokens_per_min: int | None = Field(None, gt=0, description="estimated input + max_tokens, corrected by actual usage")
+    max_concurrent: int | None = Field(None, ge=1)
+    window_margin_s: float = Field(
+        1.0,
+        ge=0,
+        description="the 60 s window is widened by this much, so jitter between the limiter's grant "
+        "and the provider's arrival cannot put more than the limit in any 60 s window",
+    )
+    burst: int = Field(1, ge=1, description="requests that may go at once after an idle period (pacing)")
+    key: str | None = Field(None, description="limiter key; entries sharing an endpoint/account share a key")
+
+    @property
+    def enabled(self) -> bool:
+        return any(v is not None for v in (self.requests_per_min, self.tokens_per_min, self.max_concurrent))
 
 
 class Limiter(Protocol):

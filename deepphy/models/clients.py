@@ -1,4 +1,5 @@
-"""Request and response formats of the three provider APIs.
+"""Request and response formats of the built-in providers' APIs (each declared in
+deepphy/models/providers/<name>.py).
 
 - OpenAI Chat Completions (POST {base}/chat/completions; OpenAI, vLLM, SGLang, ...):
   system text as a system message, user content as parts `{"type": "text"}` /
@@ -165,10 +166,3 @@ class GeminiClient(HTTPModelClient):
         if tout is not None or usage.get("thoughtsTokenCount"):
             tout = (tout or 0) + (usage.get("thoughtsTokenCount") or 0)  # thinking is billed as output
         return text, usage.get("promptTokenCount"), tout
-
-
-CLIENTS: dict[str, type[HTTPModelClient]] = {
-    "openai": OpenAIChatClient,
-    "anthropic": AnthropicClient,
-    "gemini": GeminiClient,
-}
