@@ -74,7 +74,7 @@ def make_env_workers(spec: EnvSpec, options: EnvOptions, runtime: RuntimeOptions
 
 
 def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None = None, *,
-             stream=sys.stderr, shared: Shared | None = None, view: StartView | None = None) -> RunOutcome:
+             stream=None, shared: Shared | None = None, view: StartView | None = None) -> RunOutcome:
     """Run (or resume) an evaluation into `out`. Every check that needs no Ray comes first
     and raises ConfigError / RunDirError / the models' errors (unknown model, missing key)
     before Ray starts and without writing anything; a finished run returns at once, without
@@ -82,6 +82,7 @@ def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None 
     `runtime.in_process`: the workers in this process, no Ray (deepphy.in_process).
     `view`: the command's start view (one is made here if the runtime shows progress)."""
     began = time.time()
+    stream = stream or sys.stderr  # looked up per call: pytest and others swap sys.stderr after import
     runtime = runtime or RuntimeOptions()
     the_plan = plan(config)
     endpoints = run_endpoints(config, runtime.models_file)

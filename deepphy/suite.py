@@ -211,11 +211,12 @@ class CellOutcome:
 
 
 def run_suite(suite: Suite, root: str | Path, runtime: RuntimeOptions, models: list[str] | None = None,
-              stream=sys.stderr, cell_lines: bool = False, view=None) -> list[CellOutcome]:
+              stream=None, cell_lines: bool = False, view=None) -> list[CellOutcome]:
     """Run (or resume) every cell of `suite` into `root`, interleaved in one Ray runtime
     (started here unless this process is connected already), with one progress view
     (`cell_lines`: a line per running cell too). `view`: the command's start view, which
     says the Ray start and ends where the suite's own view begins."""
+    stream = stream or sys.stderr  # looked up per call: pytest and others swap sys.stderr after import
     root = Path(root)
     wanted = checked_cells(suite, root, models, runtime.models_file)
     added = len(wanted) - len(read_manifest(root)) if (root / MANIFEST).exists() else 0
