@@ -139,7 +139,7 @@ def test_a_run_made_before_parity_is_read_labelled_and_never_resumed(tmp_path, d
     assert config.pop("prompts") == "paper"
     (old / "config.json").write_text(json.dumps(config))
     report = report_of(old)
-    assert report["prompts"] == "before-parity" and report["departures"] == ["prompts=before-parity"]
+    assert report.prompts == "before-parity" and report.departures == ["prompts=before-parity"]
     assert "departs from the paper: prompts=before-parity" in render_text(report).splitlines()[0]
     proc = subprocess.run([*deepphy_cmd, "run", "--env", "iphyre", "--limit", "2", "--runs", "1", "--out", str(old)],
                           capture_output=True, text=True, timeout=120)
