@@ -103,7 +103,7 @@ def build_parser(argv: list[str] | None = None):
                      "--in-process: one thread)")
     run.add_argument("--env-resource", metavar="NAME",
                      help="place environment workers only on nodes with this custom Ray resource")
-    run.add_argument("--max-in-flight", type=int, default=256, help="episodes in progress at once; default 256")
+    run.add_argument("--max-in-flight", type=int, help="episodes in progress at once; default 256")
     run.add_argument("--no-progress", action="store_true", help="no live progress line")
     run.add_argument("--cell-lines", action="store_true",
                      help="with --suite: a progress line per running cell too (every 10 s), below the suite's")
@@ -277,11 +277,13 @@ def cmd_run(args) -> int:
     if view and args.no_progress:  # asked for by an abbreviation (--no-prog)
         view.stop()
         view = None
+    # a flag not given takes the model's default (the one place a default is said; the help repeats it,
+    # and a test holds the two equal)
     given = {"address": args.address, "num_cpus": args.num_cpus, "env_workers": args.env_workers,
-             "env_resource": args.env_resource}
+             "env_resource": args.env_resource, "max_in_flight": args.max_in_flight}
     runtime = _validated(lambda: RuntimeOptions(
         **{k: v for k, v in given.items() if v is not None}, in_process=args.in_process,
-        max_in_flight=args.max_in_flight, progress=not args.no_progress, max_cost_usd=args.max_cost,
+        progress=not args.no_progress, max_cost_usd=args.max_cost,
         # absolute: model workers may run in another directory
         models_file=str(Path(args.models_file).resolve()) if args.models_file else None,
     ))
@@ -309,10 +311,9 @@ def cmd_run(args) -> int:
             raise UserError(f"several models need --suite (one run directory holds one model); --model "
                             f"{args.model[:60]} names {len(models)}")
         model = models[0]
+    flags = {"env": args.env, "format": args.format, "runs": args.runs, "seed": args.seed}
     config = _validated(lambda: RunConfig(
-        env=args.env or "iphyre", model=model, format=args.format or "vla",
-        runs=args.runs if args.runs is not None else 3, seed=args.seed or 0,
-        tasks=_task_ids(args.tasks),
+        **{k: v for k, v in flags.items() if v is not None}, model=model, tasks=_task_ids(args.tasks),
         limit=args.limit, max_attempts=args.max_attempts, env_options=_env_options(args.env_option or []),
         agent=agent,
     ))
@@ -691,7 +692,7 @@ def cmd_play(args: argparse.Namespace) -> int:
             config = RunConfig(**{**stored.model_dump(), **asked, "model": player_model(player)})
         else:
             player = args.player or getpass.getuser()
-            config = RunConfig(**{"env": "iphyre", "runs": 1, **asked, "model": player_model(player)})
+            config = RunConfig(**{"runs": 1, **asked, "model": player_model(player)})  # a person plays once
     except ValidationError as e:
         raise UserError(validation_message(e)) from None
     except ValueError as e:

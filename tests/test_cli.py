@@ -304,3 +304,21 @@ def test_the_start_view_repeats_while_the_run_holds_the_gil():
     assert during[0] == "starting Ray (local, 2 CPUs) ..."
     repeats = [line for line in during[1:] if line.startswith("starting Ray (local, 2 CPUs) ... ")]
     assert len(repeats) >= 3 and repeats[-1].endswith(("2s", "3s")), during
+
+
+def test_the_helps_defaults_are_the_configs():
+    """A default is said once, in the config models; `deepphy run --help` repeats it for the
+    reader, and a flag not given takes the model's value, so the two must agree."""
+    from deepphy.cli import build_parser
+    from deepphy.config import RunConfig, RuntimeOptions
+
+    run = next(a for a in build_parser()._subparsers._group_actions[0].choices.values() if a.prog.endswith(" run"))
+    helps = {a.option_strings[0]: a.help for a in run._actions if a.option_strings}
+    for flag, default in [("--env", RunConfig.model_fields["env"].default),
+                          ("--format", RunConfig.model_fields["format"].default.value),
+                          ("--runs", RunConfig.model_fields["runs"].default),
+                          ("--seed", RunConfig.model_fields["seed"].default),
+                          ("--num-cpus", RuntimeOptions.model_fields["num_cpus"].default),
+                          ("--max-in-flight", RuntimeOptions.model_fields["max_in_flight"].default)]:
+        assert helps[flag].endswith(f"default {default}"), (flag, helps[flag])
+        assert run.get_default(flag.lstrip("-").replace("-", "_")) is None  # the model's default applies
