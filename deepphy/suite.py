@@ -31,7 +31,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from deepphy.actors.model_worker import make_model_worker
@@ -41,6 +40,7 @@ from deepphy.chat import PromptFormat
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.envs.shortcuts import is_shortcut, shortcut_for
 from deepphy.messages import one_line, validation_message
+from deepphy.yamlfile import read_yaml_model
 from deepphy.metrics.live import _duration, _rate, format_progress
 from deepphy.plan import plan
 from deepphy.ray_connect import disconnect, ensure_ray
@@ -108,15 +108,7 @@ def load_suite(name_or_path: str) -> Suite:
     if not path.is_file():
         known = ", ".join(sorted(p.stem for p in SHIPPED.glob("*.yaml")))
         raise SuiteError(f"no suite {name_or_path!r}: give a suite file or one of {known}")
-    try:
-        data = yaml.safe_load(path.read_text())
-        return Suite.model_validate(data)
-    except OSError as e:
-        raise SuiteError(f"suite file {path}: {e.strerror or e}") from None
-    except yaml.YAMLError as e:
-        raise SuiteError(f"suite file {path}: not valid YAML ({one_line(str(e))})") from None
-    except ValidationError as e:
-        raise SuiteError(f"suite file {path}: {validation_message(e)}") from None
+    return read_yaml_model(path, Suite, SuiteError, "suite file")
 
 
 def _name_part(value: Any) -> str:

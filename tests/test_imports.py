@@ -37,10 +37,15 @@ def resolved(name: str) -> str | None:
 
 
 def imports(path: Path) -> list[tuple[ast.stmt, list[str], bool]]:
-    """(statement, deepphy modules it imports, whether it is inside a function) for every import."""
+    """(statement, deepphy modules it imports, whether it is inside a function) for every import
+    that runs: those under `if TYPE_CHECKING:` are for a type checker's eyes only and import
+    nothing when the program runs (the report's models named in the metric registry's
+    annotations)."""
     tree = ast.parse(path.read_text())
     inner = {id(n) for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
              for n in ast.walk(f) if isinstance(n, (ast.Import, ast.ImportFrom))}
+    typing_only = {id(n) for f in ast.walk(tree) if isinstance(f, ast.If) and ast.unparse(f.test) == "TYPE_CHECKING"
+                   for n in ast.walk(f) if isinstance(n, (ast.Import, ast.ImportFrom))}
     package = module_name(path) if path.name == "__init__.py" else module_name(path).rpartition(".")[0]
     out = []
     for node in ast.walk(tree):
@@ -52,6 +57,8 @@ def imports(path: Path) -> list[tuple[ast.stmt, list[str], bool]]:
                 base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + ([base] if base else []))
             names = [f"{base}.{a.name}" for a in node.names] + [base]
         else:
+            continue
+        if id(node) in typing_only:
             continue
         found = [m for m in dict.fromkeys(resolved(n) for n in names if n.startswith("deepphy")) if m]
         out.append((node, found, id(node) in inner))

@@ -19,7 +19,7 @@ from __future__ import annotations
 import statistics
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any, Callable, Literal, Optional, Sequence, Union
+from typing import TYPE_CHECKING, Any, Callable, Literal, Optional, Sequence, Union
 
 from pydantic import BaseModel, ConfigDict
 
@@ -28,9 +28,8 @@ from deepphy.envs import EnvSpec
 from deepphy.metrics import figures as F
 from deepphy.runs.records import AttemptRecord, episode_finished
 
-# "Report" and "Section" in the annotations below are deepphy.metrics.report's models; not
-# imported, not even for type checking: the report is built from this registry, never the
-# other way round.
+if TYPE_CHECKING:  # the annotations' models; at run time the report imports this registry, not the reverse
+    from deepphy.metrics.report import Report, Section
 
 # A figure's number: an int stays an int (a count), a float a float (a rate, or a mean over
 # runs), so the report's JSON writes each as it was computed.

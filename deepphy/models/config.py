@@ -34,10 +34,9 @@ from pathlib import Path
 from typing import Any, Literal
 from urllib.parse import urlparse
 
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from deepphy.messages import one_line, validation_message
+from deepphy.yamlfile import read_yaml_model
 from deepphy.models.limiter import RateLimits
 from deepphy.models.providers import UnknownProvider, provider_spec
 from deepphy.models.providers.spec import KEY_VARIABLE, ProviderSpec
@@ -297,12 +296,4 @@ def load_groups(models_file: str | Path | None = None) -> dict[str, list[str]]:
 def load_models_file(models_file: str | Path | None = None) -> ModelsFile:
     """The whole models file, validated (default: $DEEPPHY_MODELS_FILE, else the shipped file)."""
     path = models_file_path(models_file)
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-        return ModelsFile.model_validate(data)
-    except OSError as e:
-        raise ModelsFileError(f"models file {path}: {e.strerror or e}") from None
-    except yaml.YAMLError as e:
-        raise ModelsFileError(f"models file {path}: not valid YAML ({one_line(str(e))})") from None
-    except ValidationError as e:
-        raise ModelsFileError(f"models file {path}: {validation_message(e)}") from None
+    return read_yaml_model(path, ModelsFile, ModelsFileError, "models file")

@@ -70,7 +70,6 @@ from deepphy.envs.cuttherope.oracle import (
     Plan,
     centre_actions,
     nudged,
-    play,
     replay,
     search,
     sleeps_of,
