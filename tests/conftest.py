@@ -26,6 +26,7 @@ TESTS = os.path.dirname(os.path.abspath(__file__))
 os.environ["PYTHONPATH"] = os.pathsep.join(p for p in [TESTS, os.environ.get("PYTHONPATH", "")] if p)
 
 RAY_TIMEOUT_S = 120
+pytest_plugins = ["browser_support"]  # the browser tests' one harness (chromium, pages, screenshots)
 # The tests' own data (ground truth from the real simulators), kept in the repository:
 # tests/data/README.md says where each file came from.
 TEST_DATA = Path(__file__).resolve().parent / "data"

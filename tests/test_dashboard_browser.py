@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from browser_support import needs_chromium
 from dashboard_support import IPHYRE_TASKS, append, copy_run, mock_run, synthetic_run
 from deepphy.config import RunConfig, RuntimeOptions
 from deepphy.runs.discovery import dir_id
@@ -26,12 +27,9 @@ from deepphy.runner import evaluate
 from deepphy.runs.status import RunStatus, write_status
 from deepphy.runs.store import ATTEMPTS, RunStore, read_config, read_records
 
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 UPDATE_LIMIT_S = 30.0  # a hang guard, not a speed claim: how fast a page updates is benchmarks/dashboard.py's
 
-pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"needs Debian's chromium at {CHROMIUM}")
+pytestmark = needs_chromium
 
 
 @pytest.fixture(scope="module")
@@ -40,25 +38,6 @@ def runs(ray_cluster, tmp_path_factory):
 
     with ThreadPoolExecutor(1) as pool:  # a thread of its own: Playwright's sync API may hold this one's loop
         return pool.submit(lambda: (mock_run(tmp_path_factory), mock_run(tmp_path_factory, fmt="wm"))).result()
-
-
-@pytest.fixture(scope="module")
-def browser(tmp_path_factory):
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        context = p.chromium.launch_persistent_context(
-            str(tmp_path_factory.mktemp("chromium-profile")), executable_path=CHROMIUM, headless=True,
-            args=CHROMIUM_ARGS, viewport={"width": 1400, "height": 1000})
-        yield context
-        context.close()
-
-
-@pytest.fixture
-def screenshots(tmp_path):
-    out = Path(os.environ.get("DEEPPHY_SCREENSHOTS", tmp_path))
-    out.mkdir(parents=True, exist_ok=True)
-    return out
 
 
 class DashboardProcess:
@@ -97,25 +76,6 @@ def serve():
     yield start
     for server in servers:
         server.close()
-
-
-@pytest.fixture
-def open_page(browser):
-    """Opens a URL; collects console errors and uncaught exceptions, which fail the test."""
-    pages, errors = [], []
-
-    def opener(url):
-        page = browser.new_page()
-        page.on("console", lambda m: errors.append(f"console {m.type}: {m.text}") if m.type == "error" else None)
-        page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
-        page.goto(url)
-        pages.append(page)
-        return page
-
-    yield opener
-    for page in pages:
-        page.close()
-    assert not errors, errors
 
 
 def report_json(run_dir) -> dict:

@@ -28,31 +28,11 @@ from deepphy.envs.base import FILM_FPS
 from deepphy.play.human import JOURNAL
 from deepphy.runs.store import episode_prompts, read_records, stored_image
 from play_support import PlayThread, model_run, person_run, same_records
-from test_dashboard_browser import CHROMIUM, browser, screenshots  # noqa: F401 (fixtures)
+from browser_support import needs_chromium
 
-pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"needs Debian's chromium at {CHROMIUM}")
+pytestmark = needs_chromium
 ACT_TIMEOUT_MS = 180_000  # a decision's physics, on a loaded machine (Pooltool's first shot compiles if uncached)
 ENVS = Path(__file__).resolve().parents[1] / "deepphy" / "envs"
-
-
-@pytest.fixture
-def open_page(browser):
-    """Opens a URL; console errors and uncaught exceptions fail the test."""
-    pages, errors = [], []
-
-    def opener(url):
-        page = browser.new_page()
-        page.on("console", lambda m: errors.append(f"console {m.type}: {m.text}") if m.type == "error" else None)
-        page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
-        page.goto(url)
-        pages.append(page)
-        return page
-
-    yield opener
-    for page in pages:
-        if not page.is_closed():
-            page.close()
-    assert not errors, errors
 
 
 @pytest.fixture
