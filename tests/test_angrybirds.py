@@ -220,6 +220,24 @@ def _braced_post(material: str) -> Level:
                   platforms=[Platform(x=5.36, y=1.0, w=0.5, h=2.0)])
 
 
+def test_a_full_power_red_bird_breaks_a_lone_wooden_bar_and_a_half_power_one_does_not():
+    """Science Birds' rule for a bird's hit on a block: closing speed x 0.5 x 11.22 - 2.5, so
+    10 u/s deals 53.6 to a small wooden bar (50 hp) and 5 u/s 25.6, however light the bar
+    (a contact's impulse is small against a light block: 53-67 % of its hit points)."""
+    from deepphy.envs.angrybirds.sim import World
+
+    for x in (3.5, 4.0):
+        for power, breaks in ((1.0, True), (0.5, False)):
+            post = Block(shape="rect_small", material="wood", x=x, y=1.0 + 0.425, angle=90)
+            world = World(_level([post], FAR_PIG, platforms=[Platform(x=x, y=0.5, w=0.6, h=1.0)]))
+            bar = world.things[0]
+            shot = world.shoot("red", 0.0, power)
+            assert shot.first_hit == "wood rect small", (x, power)
+            assert bar.alive is not breaks, (x, power, bar.hp)
+            if not breaks:
+                assert 0.4 < bar.damage < 0.8, bar.damage  # dented: about half its hit points
+
+
 def test_a_block_breaks_under_a_hard_hit_and_survives_a_soft_one():
     from deepphy.envs.angrybirds.sim import World
 
