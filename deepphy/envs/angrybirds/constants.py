@@ -224,15 +224,13 @@ BIRD_DAMAGE_MASS = {"red": 0.5, "yellow": 0.3, "blue": 0.225, "black": 0.7}
 SCORE_PIG = 5000
 SCORE_BLOCK = 500  # per block destroyed (TNT included)
 SCORE_UNUSED_BIRD = 10000  # per bird not launched, when the level is won
-# Stars (levels.star_thresholds): 1 for a win; 2 and 3 from per-level thresholds derived
-# from the oracle's stored plan, which wins with the fewest birds the oracle needs (U birds
-# to spare) and destroys D blocks. 3 stars: a score of at least
-# SCORE_PIG x pigs + SCORE_UNUSED_BIRD x U + SCORE_BLOCK x ceil(THREE_STAR_DESTRUCTION x D):
-# as economical as the oracle and at least that share of its destruction. 2 stars: one
-# bird fewer to spare (or, with none to spare, TWO_STAR_DESTRUCTION of its destruction).
-THREE_STAR_DESTRUCTION = 0.75
-TWO_STAR_DESTRUCTION = 0.25
-
+# Stars (levels.stars_for): fewer birds come first. A win with no more birds than the
+# oracle's stored plan uses earns 3 stars (fewer than the oracle's: 3 too); each bird more
+# costs a star, down to 1. Destruction counts in the score, not in the stars: a threshold on
+# the oracle's destruction made a clean one-bird win 2 stars (the game gives 3), and score
+# thresholds printed per level revealed the oracle's bird count ((3-star threshold - 5000 x
+# pigs) // 10000). Nothing shown to a model states the oracle's count.
+STARS_MAX = 3
 # -- levels ------------------------------------------------------------------------------------------
 
 MAX_BIRDS = 8  # the largest bird count of the reference levels (scene 1, level 21)
