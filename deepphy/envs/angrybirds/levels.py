@@ -6,9 +6,9 @@ world units (x right, y up, the ground's surface at y = 0) and rotation in degre
 slopes, hills). Its `idea` says what the level teaches or tests; its `title` is shown
 only with the `physics_hints` option. The oracle (solve.py) adds its winning plan, what
 that plan measured; the stars of a win follow from its bird count (`stars_for`). Files
-are written one object per line, so they read and diff well and can be edited by hand;
-after editing a structure, run `deepphy solve --env angrybirds search --levels <id>` to
-refresh the plan and its measurements.
+are written one object per line, so they read and diff well. The levels are designed in
+design.py: after editing a design, `deepphy solve --env angrybirds make --levels <id>`
+writes its file with the plan and its measurements (`search` searches a plan anew).
 """
 
 from __future__ import annotations

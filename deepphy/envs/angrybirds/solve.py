@@ -16,6 +16,13 @@ and calibrate the levels (oracle.py has the methods and their definitions).
         (oracle.Search.refine). About a minute per level that one bird wins; several for
         levels that need more.
 
+    deepphy solve --env angrybirds make [--levels ...] [--dry-run]
+        Turn each level's design (design.py) into its level file: the structure, and the
+        designer's plan measured as it stands (oracle.Search.measure: robustness under the
+        declared nudge set, the one-shot landscape; a level one bird wins robustly stores
+        that shot instead). Fails (exit 1) if a designer's plan does not win. Some 20 s a
+        level.
+
     deepphy solve --env angrybirds calibrate [--levels ...] [--episodes 100] [--seed 0] [--json FILE]
         Per level: the reference random baseline over EPISODES episodes drawn exactly as
         `deepphy run --model mock --seed SEED` draws runs 0..EPISODES-1 (single-shot win
@@ -45,6 +52,7 @@ from deepphy.envs.angrybirds import shortcuts
 from deepphy.envs.angrybirds.levels import Level, Oracle, Shot, level_ids, load_level, save_level
 from deepphy.envs.angrybirds.oracle import (
     NUDGES,
+    ROBUST_TARGET,
     Search,
     SearchResult,
     ability_needed,
@@ -59,7 +67,7 @@ from deepphy.envs.angrybirds.oracle import (
 TARGET_EPISODE_WINS = (0.10, 0.25)  # share of levels the reference baseline wins, overall
 TARGET_AIM = 0.25  # share of levels the aim-at-the-nearest-pig baseline wins, at most
 TARGET_SHORTCUT = 0.35  # ... any shortcut baseline, at most
-TARGET_ROBUSTNESS = 0.5  # every stored plan: its weakest shot and all shots at once, at least
+TARGET_ROBUSTNESS = ROBUST_TARGET  # every stored plan: its weakest shot and all shots at once, at least
 TARGET_MAX_SINGLE = 0.40  # no level above this share of random single-shot wins
 TARGET_NEED_TWO, TARGET_NEED_THREE = 10, 4  # levels whose oracle needs 2+ / 3+ birds
 AIM = "aim"  # the shortcut TARGET_AIM holds
@@ -102,6 +110,29 @@ def run_search(ids: list[str], coarse: bool, dry_run: bool, plan: tuple | None =
               f"{best.blocks} blocks, robustness {result.robustness:.2f} (all at once {result.robustness_all:.2f}); "
               f"one-shot wins {result.one_shot[0]} ({result.one_shot[1]} isolated); {result.shorter_tried} shorter "
               f"plans without a win; {result.searched} plans simulated, {cpu:.0f} s CPU", flush=True)
+        if not dry_run:
+            store(level, result)
+    return 1 if failed else 0
+
+
+def run_make(ids: list[str], dry_run: bool) -> int:
+    from deepphy.envs.angrybirds.design import PLANS, design
+
+    failed = []
+    for level_id in ids:
+        t0 = time.process_time()
+        level = design(level_id)
+        try:
+            result = Search(level, log=lambda text: print(f"  {level_id} {text}", flush=True)).measure(PLANS[level_id])
+        except ValueError as e:
+            failed.append(level_id)
+            print(f"{level_id}: {e}", flush=True)
+            continue
+        best = result.best
+        print(f"{level_id}: {len(best.plan)} bird(s): {_plan_text(best.plan)}; score {best.score}, {best.blocks} blocks, "
+              f"robustness {result.robustness:.2f} (all at once {result.robustness_all:.2f}); one-shot wins "
+              f"{result.one_shot[0]} ({result.one_shot[1]} isolated); {result.searched} plans simulated, "
+              f"{time.process_time() - t0:.0f} s CPU", flush=True)
         if not dry_run:
             store(level, result)
     return 1 if failed else 0
@@ -313,6 +344,9 @@ def main(argv: list[str] | None = None) -> int:
     srch.add_argument("--coarse", action="store_true", help="depth 1 on the coarse grid (quick, for designing)")
     srch.add_argument("--plan", help='one level: the designer\'s winning plan "A,P;A,P" to check and centre')
     srch.add_argument("--dry-run", action="store_true", help="print what was found, write nothing")
+    mk = sub.add_parser("make", help="turn designs (design.py) into level files with their measured plans")
+    mk.add_argument("--levels", help="comma-separated level ids (default: all)")
+    mk.add_argument("--dry-run", action="store_true", help="print what was measured, write nothing")
     cal = sub.add_parser("calibrate", help="the reference baseline, the oracle and stars, per level")
     cal.add_argument("--levels", help="comma-separated level ids (default: all)")
     cal.add_argument("--episodes", type=int, default=100, help="random episodes per level (default 100)")
@@ -340,6 +374,8 @@ def main(argv: list[str] | None = None) -> int:
             except (ValueError, AssertionError):
                 parser.error(f'--plan: not "A,P;A,P": {args.plan!r}')
         return run_search(ids, args.coarse, args.dry_run, plan)
+    if args.command == "make":
+        return run_make(ids, args.dry_run)
     if args.command == "calibrate":
         if args.episodes < 1:
             parser.error("--episodes must be at least 1")
