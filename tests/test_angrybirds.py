@@ -518,6 +518,73 @@ def test_every_stored_plan_wins_with_its_stars(env):
         assert all(not r.done for r in results[:-1]) and all(r.stars is None for r in results[:-1])
 
 
+def test_the_level_files_are_the_designs():
+    # design.py is how the levels were made (`deepphy solve --env angrybirds make`): every file
+    # holds its design, and the plan it stores wins on it (the replay test checks how well).
+    from deepphy.envs.angrybirds.design import LEVELS, PLANS
+
+    assert [lv.id for lv in LEVELS] == level_ids() and list(PLANS) == level_ids()
+    for lv in LEVELS:
+        assert load_level(lv.id).model_copy(update={"oracle": None}) == lv, lv.id
+
+
+# -- issue 42's targets, on cheap proxies -----------------------------------------------------------
+# `deepphy solve --env angrybirds calibrate` measures everything (100 random episodes a level, the
+# one-shot landscape, the nudges); these tests hold the levels to the same targets on what is cheap
+# to check: the shortcut baselines (deterministic: one attempt a level), the reference random
+# baseline's runs 0-2 (what the README's MOCK row plays) and the stored measurements of the plans.
+
+
+def test_no_shortcut_baseline_wins_many_levels():
+    """The aim-at-the-nearest-pig baseline wins at most 25 % of the levels, no shortcut more
+    than 35 % (issue 42: the second edition's sparse levels let aim win 23 of 34)."""
+    from deepphy.envs.angrybirds.shortcuts import POLICIES, play
+
+    levels = [load_level(level_id) for level_id in level_ids()]
+    for name, policy in POLICIES.items():
+        won = [level.id for level in levels if play(level, policy)[0].pigs_left == 0]
+        limit = 0.25 if name == "aim" else 0.35
+        assert len(won) <= limit * len(levels), (name, won)
+
+
+def test_the_reference_random_baseline_wins_10_to_25_percent_of_the_levels():
+    """Runs 0-2 of the reference baseline (seed 0), as the README's MOCK row plays them."""
+    from deepphy.envs.angrybirds.oracle import reference_episode
+
+    levels = [load_level(level_id) for level_id in level_ids()]
+    rate = sum(reference_episode(level, 0, run).won for level in levels for run in range(3)) / (3 * len(levels))
+    assert 0.10 <= rate <= 0.25, rate
+
+
+def test_every_stored_plan_is_robust_and_no_one_shot_landscape_is_a_set_of_knife_edges():
+    """The stored measurements (oracle.py's nudge set: each shot alone at +-1, +-2 degrees x
+    power -0.02/0/+0.02, and all shots at once): at least half of the nudges still win, for
+    the weakest shot and for all at once; a level with one-shot wins has a winning region,
+    not only isolated grid points. One level is measured again here (the stored figures
+    are honest)."""
+    from deepphy.envs.angrybirds.oracle import robustness, robustness_all
+
+    for level_id in level_ids():
+        oracle = load_level(level_id).oracle
+        assert oracle.robustness >= 0.5 and oracle.robustness_all >= 0.5, (level_id, oracle.robustness,
+                                                                             oracle.robustness_all)
+        assert oracle.one_shot_wins == 0 or oracle.one_shot_isolated < oracle.one_shot_wins, level_id
+    level = load_level("s1_l02")
+    plan = [(s.angle, s.power) for s in level.oracle.plan]
+    cache: dict = {}
+    assert (robustness(level, plan, cache), robustness_all(level, plan, cache)) == \
+        (level.oracle.robustness, level.oracle.robustness_all)
+
+
+@pytest.mark.slow
+def test_the_stored_one_shot_landscapes_are_what_the_levels_give():
+    from deepphy.envs.angrybirds.oracle import landscape
+
+    for level_id in level_ids()[::5]:
+        level = load_level(level_id)
+        assert landscape(level) == (level.oracle.one_shot_wins, level.oracle.one_shot_isolated), level_id
+
+
 _REPLAY = """
 import hashlib, json, sys
 from deepphy.envs.angrybirds.levels import load_level
