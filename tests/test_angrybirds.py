@@ -528,6 +528,21 @@ def test_the_level_files_are_the_designs():
         assert load_level(lv.id).model_copy(update={"oracle": None}) == lv, lv.id
 
 
+def test_make_measures_a_designers_plan_and_prefers_a_robust_one_shot_win():
+    """`solve make` (Search.measure): a designer's plan that needs a second bird gives way to a
+    robust one-shot win where the landscape has one; a plan that does not win is refused."""
+    from deepphy.envs.angrybirds.oracle import Search
+    from deepphy.envs.angrybirds.shortcuts import flat_shot
+
+    open_pig = _level([], [Pig(x=9.0, y=C.PIG_RADIUS["small"])], birds=["red", "red"])
+    miss = (90.0, 0.3)  # straight up, falls back next to the slingshot
+    result = Search(open_pig).measure([miss, flat_shot(9.0, C.PIG_RADIUS["small"])])
+    assert len(result.best.plan) == 1 and result.best.won and result.shorter_tried == 0
+    assert min(result.robustness, result.robustness_all) >= 0.5 and result.one_shot[0] > result.one_shot[1]
+    with pytest.raises(ValueError, match="does not win"):
+        Search(open_pig).measure([miss])
+
+
 # -- issue 42's targets, on cheap proxies -----------------------------------------------------------
 # `deepphy solve --env angrybirds calibrate` measures everything (100 random episodes a level, the
 # one-shot landscape, the nudges); these tests hold the levels to the same targets on what is cheap

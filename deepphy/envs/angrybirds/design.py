@@ -96,7 +96,8 @@ def fort(x: float, y0: float, storeys: int = 2, lintel: str = "rect_medium", pos
     return blocks, y
 
 
-def keep(x0: float, y0: float, storeys: int = 2, materials: tuple[str, ...] = ("stone", "wood")) -> tuple[list[Block], float]:
+def keep(x0: float, y0: float, storeys: int = 2,
+         materials: tuple[str, ...] = ("stone", "wood")) -> tuple[list[Block], float]:
     """A fort of medium frames whose left edge is x0 (no pig), roofed."""
     return fort(x0 + SIZE["rect_medium"][0] / 2, y0, storeys, "rect_medium", "rect_small", materials)
 
@@ -115,13 +116,15 @@ def slab_trap(x: float, niche: float = 2.06, lh: float = 0.95, rh: float = 2.35,
     rock behind rh high and rw wide; the niche's floor at `ground`) under a stone slab on
     two big legs of `legs`; `crown`: a little stone shrine on the slab (more weight)."""
     a, b, g = x - niche / 2, x + niche / 2, ground
-    rocks = [[(a - lw, g), (a, g), (a, g + lh), (a - lw + 0.25, g + lh)], [(b, g), (b + rw, g), (b + rw, g + rh), (b, g + rh)]]
+    rocks = [[(a - lw, g), (a, g), (a, g + lh), (a - lw + 0.25, g + lh)],
+             [(b, g), (b + rw, g), (b + rw, g + rh), (b, g + rh)]]
     if g > 0:  # a raised niche: one rock under both
         rocks.append([(a, 0.0), (b, 0.0), (b, g), (a, g)])
         rocks[0][0], rocks[0][1] = (a - lw, 0.0), (a, 0.0)
         rocks[1][0], rocks[1][1] = (b, 0.0), (b + rw, 0.0)
     tall = SIZE["rect_big"][0]
-    blocks = [post(a + 0.11, g, "rect_big", legs), post(b - 0.11, g, "rect_big", legs), bar(x, g + tall, "rect_big", "stone")]
+    blocks = [post(a + 0.11, g, "rect_big", legs), post(b - 0.11, g, "rect_big", legs),
+              bar(x, g + tall, "rect_big", "stone")]
     if crown:
         yt = g + tall + SIZE["rect_big"][1]
         blocks += [bar(x - 0.55, yt, "square_small", "stone"), bar(x + 0.55, yt, "square_small", "stone"),
@@ -374,7 +377,8 @@ def _():
 
 @level("s1_l21", "The castle", "BRYBRYYY", [(23, 0.6), (44, 0.7)],
        "the scene's finale: a stone slab on glass (ice) legs over a small pig, a stone boulder above a wooden hut "
-       "with a small pig, and a three-storey wooden tower with TNT on its ground floor and a small pig on its top floor")
+       "with a small pig, and a three-storey wooden tower with TNT on its ground floor and a small pig on its top "
+       "floor")
 def _():
     return (slab_trap(7.6, lh=1.4, rh=1.6, lw=0.9, rw=0.3) + boulder_hill(x0=9.0, top=2.4, flat=0.8, run=1.6, lw=0.6)
             + tower_pig(15.05, storeys=2) + Parts(tnt=[Tnt(x=15.05, y=0.25)]))

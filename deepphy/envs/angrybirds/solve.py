@@ -49,6 +49,7 @@ from pathlib import Path
 from deepphy.envs.calibration import wins_by_luck
 from deepphy.envs.angrybirds import constants as C
 from deepphy.envs.angrybirds import shortcuts
+from deepphy.envs.angrybirds.design import PLANS, design
 from deepphy.envs.angrybirds.levels import Level, Oracle, Shot, level_ids, load_level, save_level
 from deepphy.envs.angrybirds.oracle import (
     NUDGES,
@@ -116,23 +117,22 @@ def run_search(ids: list[str], coarse: bool, dry_run: bool, plan: tuple | None =
 
 
 def run_make(ids: list[str], dry_run: bool) -> int:
-    from deepphy.envs.angrybirds.design import PLANS, design
-
     failed = []
     for level_id in ids:
         t0 = time.process_time()
         level = design(level_id)
+        search = Search(level, log=lambda text: print(f"  {level_id} {text}", flush=True))
         try:
-            result = Search(level, log=lambda text: print(f"  {level_id} {text}", flush=True)).measure(PLANS[level_id])
+            result = search.measure(PLANS[level_id])
         except ValueError as e:
             failed.append(level_id)
             print(f"{level_id}: {e}", flush=True)
             continue
         best = result.best
-        print(f"{level_id}: {len(best.plan)} bird(s): {_plan_text(best.plan)}; score {best.score}, {best.blocks} blocks, "
-              f"robustness {result.robustness:.2f} (all at once {result.robustness_all:.2f}); one-shot wins "
-              f"{result.one_shot[0]} ({result.one_shot[1]} isolated); {result.searched} plans simulated, "
-              f"{time.process_time() - t0:.0f} s CPU", flush=True)
+        print(f"{level_id}: {len(best.plan)} bird(s): {_plan_text(best.plan)}; score {best.score}, "
+              f"{best.blocks} blocks, robustness {result.robustness:.2f} (all at once {result.robustness_all:.2f}); "
+              f"one-shot wins {result.one_shot[0]} ({result.one_shot[1]} isolated); {result.searched} plans "
+              f"simulated, {time.process_time() - t0:.0f} s CPU", flush=True)
         if not dry_run:
             store(level, result)
     return 1 if failed else 0
