@@ -1,9 +1,13 @@
 """The README's MOCK figures, regenerated from the code: runs (or resumes) a baseline over
 every environment's evaluation set and prints the figures the README quotes, with the
-wall time of each run, so the README cannot drift from what the code produces.
+wall time of each run, so the README cannot drift from what the code produces. Beside
+MOCK it runs and prints every shortcut baseline the environment declares
+(deepphy/envs/shortcuts.py: `shortcut-<name>`, same seed; one run where the shortcut draws
+nothing, since every run is then the first's). Runs are in-process (no Ray: the same
+protocol and records, one process).
 
     uv run python benchmarks/mock_figures.py [--envs iphyre,phyre] [--model mock] [--runs 3]
-                                             [--env-option pooltool:rules=reference]
+                                             [--env-option pooltool:rules=reference] [--no-shortcuts]
 
 Run directories go to runs/figures/<env>-<model>[-<options>] and are resumed if present.
 """
@@ -16,7 +20,8 @@ import sys
 import time
 from pathlib import Path
 
-from deepphy.envs import specs
+from deepphy.envs import get_spec, specs
+from deepphy.envs.shortcuts import PREFIX, shortcuts
 from deepphy.metrics.report import report_of
 
 
@@ -50,6 +55,25 @@ def summary(report: dict) -> str:
     return "; ".join(parts)
 
 
+def figures(env: str, model: str, args, options: list[str], runs: int) -> None:
+    """Run (or resume) `model` on `env` and print its figures."""
+    name = "-".join([env, model, *[o.replace("=", "_") for o in options]])
+    out = Path(args.root) / name
+    cmd = [sys.executable, "-m", "deepphy.cli", "run", "--env", env, "--model", model, "--runs",
+           str(runs), "--seed", str(args.seed), "--out", str(out), "--no-progress", "--in-process"]
+    for o in options:
+        cmd += ["--env-option", o]
+    t0 = time.perf_counter()
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if done.returncode != 0:
+        print(f"{name}: the run did not complete ({done.stderr.strip().splitlines()[-1:]}); run again to resume")
+        return
+    report = report_of(out).to_json()
+    print(f"{name} ({runs} runs, {sum(r['attempts'] for r in report['overall']['per_run'])} attempts, "
+          f"{wall / 60:.1f} min wall): {summary(report)}", flush=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--envs", default=",".join(specs()), help="comma-separated; default: every environment")
@@ -58,24 +82,15 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--env-option", action="append", default=[], metavar="ENV:KEY=VALUE")
     ap.add_argument("--root", default="runs/figures")
+    ap.add_argument("--no-shortcuts", action="store_true", help="only --model, not the shortcut baselines")
     args = ap.parse_args()
     for env in [e for e in args.envs.split(",") if e]:
         options = [o.split(":", 1)[1] for o in args.env_option if o.startswith(env + ":")]
-        name = "-".join([env, args.model, *[o.replace("=", "_") for o in options]])
-        out = Path(args.root) / name
-        cmd = [sys.executable, "-m", "deepphy.cli", "run", "--env", env, "--model", args.model, "--runs",
-               str(args.runs), "--seed", str(args.seed), "--out", str(out), "--no-progress"]
-        for o in options:
-            cmd += ["--env-option", o]
-        t0 = time.perf_counter()
-        done = subprocess.run(cmd, capture_output=True, text=True)
-        wall = time.perf_counter() - t0
-        if done.returncode != 0:
-            print(f"{name}: the run did not complete ({done.stderr.strip().splitlines()[-1:]}); run again to resume")
-            continue
-        report = report_of(out).to_json()
-        print(f"{name} ({args.runs} runs, {sum(r['attempts'] for r in report['overall']['per_run'])} attempts, "
-              f"{wall / 60:.1f} min wall): {summary(report)}", flush=True)
+        figures(env, args.model, args, options, args.runs)
+        if not args.no_shortcuts:
+            for name, short in shortcuts(get_spec(env)).items():
+                # a shortcut that draws nothing plays every run as its first: one run is all of them
+                figures(env, PREFIX + name, args, options, args.runs if short.draws else 1)
     return 0
 
 

@@ -22,7 +22,7 @@ from deepphy.envs.angrybirds.levels import (
     level_ids,
     level_json,
     load_level,
-    star_thresholds,
+    stars_for,
 )
 from deepphy.envs.angrybirds.space import Shoot, ShootSpace
 from deepphy.envs.base import InvalidAction, Task
@@ -68,33 +68,20 @@ def test_levels_have_the_reference_birds_and_stored_plans():
         level = load_level(level_id)
         assert "".join(next(k for k, v in C.BIRD_LETTERS.items() if v == b) for b in level.birds) == \
             REFERENCE_BIRDS[level_id], level_id
-        assert level.oracle is not None and level.stars is not None, level_id
-        # The thresholds follow the documented rule from what the oracle's plan measured ...
-        assert level.stars == star_thresholds(level, len(level.oracle.plan), level.oracle.blocks_destroyed), level_id
-        # ... so 3 stars are reachable (the oracle's plan earns them) and rank above 2.
-        assert level.least_win_score <= level.stars.two < level.stars.three <= level.oracle.score
-        # Every stored plan is robust (issue 19's target): its weakest shot still wins with 1 in 5 nudges.
-        assert level.oracle.robustness >= 0.2 and level.idea, level_id
+        assert level.oracle is not None and level.idea, level_id
+        assert level.least_win_score <= level.oracle.score
         # The writer's JSON reads back as the same level.
         assert Level.model_validate_json(level_json(level)) == level
 
 
-def test_stars_reward_economy_and_destruction():
-    """The star rule: 3 stars need the oracle's economy AND most of its destruction, so a
-    one-shot win that breaks little is 2 stars; each extra bird costs a star."""
-    level = _level([], [Pig(x=12.0, y=0.215)] * 2, birds=("red",) * 4)
-    stars = star_thresholds(level, shots=1, blocks=8)  # the oracle: one bird, 8 blocks broken
-    pigs = 2 * C.SCORE_PIG
-
-    def score(shots: int, blocks: int) -> int:
-        return pigs + C.SCORE_BLOCK * blocks + C.SCORE_UNUSED_BIRD * (4 - shots)
-
-    assert stars.of(True, score(1, 8)) == 3 and stars.of(True, score(1, 6)) == 3  # 3/4 of its destruction
-    assert stars.of(True, score(1, 5)) == 2 and stars.of(True, score(1, 0)) == 2  # one shot, little broken
-    assert stars.of(True, score(2, 8)) == 2 and stars.of(True, score(2, 0)) == 1
-    assert stars.of(True, score(3, 8)) == 1 and stars.of(False, score(1, 8)) == 0
-    every_bird = star_thresholds(level, shots=4, blocks=8)  # none to spare: destruction decides
-    assert every_bird.of(True, score(4, 2)) == 2 and every_bird.of(True, score(4, 1)) == 1
+def test_stars_put_fewer_birds_first():
+    """3 stars for a win with no more birds than the oracle's plan (fewer too), one less for
+    each bird more, at least 1; destruction does not count."""
+    assert [stars_for(True, shots, 2) for shots in (1, 2, 3, 4, 5, 8)] == [3, 3, 2, 1, 1, 1]
+    assert stars_for(False, 1, 2) == 0 and stars_for(True, 1, 1) == 3
+    level = load_level("s1_l01")
+    needed = len(level.oracle.plan)
+    assert level.stars(True, needed) == 3 and level.stars(True, needed + 1) == 2 and level.stars(False, 1) == 0
 
 
 def test_level_data_is_validated():
@@ -216,6 +203,24 @@ def _braced_post(material: str) -> Level:
     """A post against a fixed wall, so a hit cannot just push it away."""
     return _level([Block(shape="rect_medium", material=material, x=5.0, y=0.84, angle=90)], FAR_PIG,
                   platforms=[Platform(x=5.36, y=1.0, w=0.5, h=2.0)])
+
+
+def test_a_full_power_red_bird_breaks_a_lone_wooden_bar_and_a_half_power_one_does_not():
+    """Science Birds' rule for a bird's hit on a block: closing speed x 0.5 x 11.22 - 2.5, so
+    10 u/s deals 53.6 to a small wooden bar (50 hp) and 5 u/s 25.6, however light the bar
+    (a contact's impulse is small against a light block: 53-67 % of its hit points)."""
+    from deepphy.envs.angrybirds.sim import World
+
+    for x in (3.5, 4.0):
+        for power, breaks in ((1.0, True), (0.5, False)):
+            post = Block(shape="rect_small", material="wood", x=x, y=1.0 + 0.425, angle=90)
+            world = World(_level([post], FAR_PIG, platforms=[Platform(x=x, y=0.5, w=0.6, h=1.0)]))
+            bar = world.things[0]
+            shot = world.shoot("red", 0.0, power)
+            assert shot.first_hit == "wood rect small", (x, power)
+            assert bar.alive is not breaks, (x, power, bar.hp)
+            if not breaks:
+                assert 0.4 < bar.damage < 0.8, bar.damage  # dented: about half its hit points
 
 
 def test_a_block_breaks_under_a_hard_hit_and_survives_a_soft_one():
@@ -511,6 +516,88 @@ def test_every_stored_plan_wins_with_its_stars(env):
         assert all(not r.done for r in results[:-1]) and all(r.stars is None for r in results[:-1])
 
 
+def test_the_level_files_are_the_designs():
+    # design.py is how the levels were made (`deepphy solve --env angrybirds make`): every file
+    # holds its design, and the plan it stores wins on it (the replay test checks how well).
+    from deepphy.envs.angrybirds.design import LEVELS, PLANS
+
+    assert [lv.id for lv in LEVELS] == level_ids() and list(PLANS) == level_ids()
+    for lv in LEVELS:
+        assert load_level(lv.id).model_copy(update={"oracle": None}) == lv, lv.id
+
+
+def test_make_measures_a_designers_plan_and_prefers_a_robust_one_shot_win():
+    """`solve make` (Search.measure): a designer's plan that needs a second bird gives way to a
+    robust one-shot win where the landscape has one; a plan that does not win is refused."""
+    from deepphy.envs.angrybirds.oracle import Search
+    from deepphy.envs.angrybirds.shortcuts import flat_shot
+
+    open_pig = _level([], [Pig(x=9.0, y=C.PIG_RADIUS["small"])], birds=["red", "red"])
+    miss = (90.0, 0.3)  # straight up, falls back next to the slingshot
+    result = Search(open_pig).measure([miss, flat_shot(9.0, C.PIG_RADIUS["small"])])
+    assert len(result.best.plan) == 1 and result.best.won and result.shorter_tried == 0
+    assert min(result.robustness, result.robustness_all) >= 0.5 and result.one_shot[0] > result.one_shot[1]
+    with pytest.raises(ValueError, match="does not win"):
+        Search(open_pig).measure([miss])
+
+
+# -- issue 42's targets, on cheap proxies -----------------------------------------------------------
+# `deepphy solve --env angrybirds calibrate` measures everything (100 random episodes a level, the
+# one-shot landscape, the nudges); these tests hold the levels to the same targets on what is cheap
+# to check: the shortcut baselines (deterministic: one attempt a level), the reference random
+# baseline's runs 0-2 (what the README's MOCK row plays) and the stored measurements of the plans.
+
+
+def test_no_shortcut_baseline_wins_many_levels():
+    """The aim-at-the-nearest-pig baseline wins at most 25 % of the levels, no shortcut more
+    than 35 % (issue 42: the second edition's sparse levels let aim win 23 of 34)."""
+    from deepphy.envs.angrybirds.shortcuts import POLICIES, play
+
+    levels = [load_level(level_id) for level_id in level_ids()]
+    for name, policy in POLICIES.items():
+        won = [level.id for level in levels if play(level, policy)[0].pigs_left == 0]
+        limit = 0.25 if name == "aim" else 0.35
+        assert len(won) <= limit * len(levels), (name, won)
+
+
+def test_the_reference_random_baseline_wins_10_to_25_percent_of_the_levels():
+    """Runs 0-2 of the reference baseline (seed 0), as the README's MOCK row plays them."""
+    from deepphy.envs.angrybirds.oracle import reference_episode
+
+    levels = [load_level(level_id) for level_id in level_ids()]
+    rate = sum(reference_episode(level, 0, run).won for level in levels for run in range(3)) / (3 * len(levels))
+    assert 0.10 <= rate <= 0.25, rate
+
+
+def test_every_stored_plan_is_robust_and_no_one_shot_landscape_is_a_set_of_knife_edges():
+    """The stored measurements (oracle.py's nudge set: each shot alone at +-1, +-2 degrees x
+    power -0.02/0/+0.02, and all shots at once): at least half of the nudges still win, for
+    the weakest shot and for all at once; a level with one-shot wins has a winning region,
+    not only isolated grid points. One level is measured again here (the stored figures
+    are honest)."""
+    from deepphy.envs.angrybirds.oracle import robustness, robustness_all
+
+    for level_id in level_ids():
+        oracle = load_level(level_id).oracle
+        assert oracle.robustness >= 0.5 and oracle.robustness_all >= 0.5, (level_id, oracle.robustness,
+                                                                             oracle.robustness_all)
+        assert oracle.one_shot_wins == 0 or oracle.one_shot_isolated < oracle.one_shot_wins, level_id
+    level = load_level("s1_l02")
+    plan = [(s.angle, s.power) for s in level.oracle.plan]
+    cache: dict = {}
+    assert (robustness(level, plan, cache), robustness_all(level, plan, cache)) == \
+        (level.oracle.robustness, level.oracle.robustness_all)
+
+
+@pytest.mark.slow
+def test_the_stored_one_shot_landscapes_are_what_the_levels_give():
+    from deepphy.envs.angrybirds.oracle import landscape
+
+    for level_id in level_ids()[::5]:
+        level = load_level(level_id)
+        assert landscape(level) == (level.oracle.one_shot_wins, level.oracle.one_shot_isolated), level_id
+
+
 _REPLAY = """
 import hashlib, json, sys
 from deepphy.envs.angrybirds.levels import load_level
@@ -544,7 +631,7 @@ def test_reset_observation_text_and_picture(env):
     assert f"blue bird (shot 1 of at most {len(level.birds)})" in lines[1]
     assert lines[2] == f"Birds after it, in order: {', '.join(level.birds[1:])}."
     assert lines[3] == f"Pigs left: {len(level.pigs)}." and lines[4] == "Shots used: 0. Score so far: 0."
-    assert lines[5] == f"Stars for a win: 1; 2 from a final score of {level.stars.two}; 3 from {level.stars.three}."
+    assert len(lines) == 5  # nothing more: no star threshold that would reveal the oracle's bird count
     img = obs.images[0].to_array()
     # The scene shows pigs (green) and blocks of all three materials.
     from deepphy.envs.angrybirds import render as R
@@ -668,6 +755,7 @@ def test_prompt_gives_the_papers_information_numbers_only_with_state_text_and_ba
     for text in (plain, hinted, rich):  # all: the syntax, the birds' abilities, the scoring rule
         assert "shoot(angle=A, power=P)" in text and "splits into three" in text and "punches through wood" in text
         assert "per bird left unused" in text or "for every bird left unused" in text
+        assert "as few birds as good" in text and "thresholds" not in text  # the star rule, no number of the oracle's
     numbers = ["960x540 pixels", f"{C.ABILITY_TIME:g} s after launch", f"{C.BLACK_FUSE:g} s after launch",
                f"{C.SCORE_PIG} per pig", "x damage to wood"]
     assert not any(n in plain or n in hinted for n in numbers) and all(n in rich for n in numbers)
@@ -684,11 +772,13 @@ def test_the_calibration_flags_a_level_random_wins_a_third_of_the_time(capsys):
     from deepphy.envs.angrybirds.solve import overall, print_calibration
 
     def row(level: str, episode: float) -> dict:
-        return {"level": level, "birds": "RR", "pigs": 1, "idea": "", "episodes": 3, "random_single": 0.0,
-                "random_episode": episode, "random_episode_runs": [True, False, False], "random_stars": None,
-                "random_three_stars": 0, "random_wins": 0, "capped_shots": 0, "oracle_birds": 1,
-                "oracle_evidence": 0, "oracle_stars": 3, "robustness": 1.0, "one_shot_wins": 0,
-                "one_shot_below_three": 0, "ability_needed": "-"}
+        return {"level": level, "birds": "RR", "pigs": 1, "blocks": 3, "idea": "", "episodes": 3,
+                "random_single": 0.0, "random_episode": episode, "random_episode_runs": [True, False, False],
+                "random_stars": None, "random_star_counts": [0, 0, 0], "random_wins": 0, "capped_shots": 0,
+                "shortcuts": {"aim": {"won": False, "shots": 2, "pigs_left": 1, "stars": 0}},
+                "oracle_birds": 1, "oracle_evidence": 0, "oracle_won": True, "oracle_stars": 3, "oracle_score": 5000,
+                "robustness_shots": [1.0], "robustness": 1.0, "robustness_all": 1.0, "one_shot_wins": 0,
+                "one_shot_isolated": 0, "ability_needed": "-"}
 
     rows = [row("s1_l01", 0.51), row("s1_l07", 0.34), row("s2_l02", 0.25)]
     assert overall(rows)["lucky"] == ["s1_l07"]

@@ -24,12 +24,15 @@ from deepphy.protocol import LocalEnv, MemoryArtifacts, run_episode
 # distances (pixels); Pooltool's ball numbers (1 to 9). Cut the Rope's are our protocol's own
 # mechanics, which the paper's real-time game had no need to state: the range `sleep` accepts,
 # the 0.25 s the world runs after each action so that its first consequence shows, the 10 s it
-# runs on at the end; and the level's number (b1_l01).
+# runs on at the end; and the level's number (b1_l01). Angry Birds': the paper's angle
+# convention (0 to 90, 45 diagonal), the score as the game displays it, the level's number.
 ALLOWED_PHRASES = {
     "phyre": [r"1/128", r"1/8\b", r"\b5 ?x ?5 grid"],
     "iphyre": [r"\b0\.0 to less than 15\b", r"\(15 s\)"],
     "kinetix": [r"(?i)goal distance[^\n]*?\d+ px", r"\(was \d+ px\)", r"last \d+"],
     "pooltool": [],
+    "angrybirds": [r"\bfrom\s+0\s+to\s+90\b", r"\b45\s+diagonally", r"\b90\s+straight\s+up", r"(?i)score(?:\s+so\s+far)?:?\s+\d+",
+                   r"\(\+\d+\)", r"\bs\d_l\d\d\b"],
     "cuttherope": [r"\b0\.1\s+to\s+10\s+seconds", r"sleep\(0\.1\.\.10\)", r"runs\s+for\s+0\.25\s+s", r"(?:up\s+to|at\s+most)\s+10\s+s\b",
                    r"\bb\d_l\d\d\b"],
 }

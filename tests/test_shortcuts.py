@@ -18,7 +18,7 @@ from deepphy.envs.shortcuts import ShortcutContext, UnknownShortcut, shortcut_fo
 from deepphy.protocol import LocalEnv, MemoryArtifacts, run_episode
 
 # The cheap environments, played for real (Kinetix compiles JAX: its policy is checked on its space).
-PLAYED = ["phyre", "iphyre", "pooltool", "cuttherope"]
+PLAYED = ["phyre", "iphyre", "pooltool", "angrybirds", "cuttherope"]
 
 
 def play(env: str, agent: str, n_tasks: int = 2, attempts: int = 3):
@@ -36,7 +36,7 @@ def play(env: str, agent: str, n_tasks: int = 2, attempts: int = 3):
 
 
 def test_every_environment_declares_shortcuts_that_are_baselines_without_an_endpoint():
-    for name in ["phyre", "iphyre", "kinetix", "pooltool", "cuttherope"]:
+    for name in ["phyre", "iphyre", "kinetix", "pooltool", "angrybirds", "cuttherope"]:
         declared = shortcuts(get_spec(name))
         assert declared, f"{name} declares no shortcut baseline"
         for short in declared:
@@ -90,6 +90,65 @@ def test_kinetix_full_throttle_drives_every_motor_forward_and_every_thruster_on(
     ctx = ShortcutContext(spec=get_spec("kinetix"), options=None, task=None, action_space=space,  # type: ignore[arg-type]
                           earlier=[], tried=[], rng=np.random.default_rng(0))
     assert space.parse(policy(ctx)).motors == (1, 1, 1) and space.parse(policy(ctx)).thrusters == (1, 1)
+
+
+def _ab_level(blocks=(), pigs=(), birds=("red", "red")):
+    from deepphy.envs.angrybirds.levels import Level
+
+    return Level(id="s1_l01", title="test", idea="a test scene", birds=list(birds), blocks=list(blocks),
+                 pigs=list(pigs))
+
+
+def test_angrybirds_aim_hits_the_nearest_pig_then_lobs_at_it():
+    """The closed-form aim goes through the pig's centre (obstacles ignored): with nothing
+    in the way its flat arc hits the nearest pig; a pig that survived that very shot gets the
+    steep arc next."""
+    from deepphy.envs.angrybirds.levels import Pig
+    from deepphy.envs.angrybirds.shortcuts import aim_at_pig, arcs, flat_shot
+    from deepphy.envs.angrybirds.sim import World
+
+    for x, y in ((6.0, 0.215), (9.0, 0.215), (13.0, 0.215), (14.5, 3.0)):
+        world = World(_ab_level(pigs=[Pig(x=x, y=y), Pig(size="medium", x=15.0, y=5.0)]))
+        angle, power = aim_at_pig(world, [])
+        shot = world.shoot("red", angle, power)
+        assert shot.first_hit == "small pig", (x, y, angle, power)  # the nearer one
+    far = World(_ab_level(pigs=[Pig(size="big", x=12.0, y=0.465)]))
+    first = aim_at_pig(far, [])
+    second = aim_at_pig(far, [first])
+    low, high = arcs(12.0, 0.465)
+    assert first == (round(low, 2), 1.0) and second == (round(high, 2), 1.0) and second[0] > 60
+    assert aim_at_pig(far, [first, second]) == first
+    assert flat_shot(3.5, 0.2)[0] == 0.0 and flat_shot(3.5, 0.2)[1] < 1.0  # below and near: level, less power
+
+
+def test_angrybirds_base_aims_at_the_foot_of_the_biggest_structure():
+    from deepphy.envs.angrybirds.levels import Block, Pig
+    from deepphy.envs.angrybirds.shortcuts import aim_at_base, structures
+    from deepphy.envs.angrybirds.sim import World
+
+    hut = [Block(shape="rect_small", material="wood", x=6.0 + dx, y=0.425, angle=90) for dx in (-0.4, 0.4)]
+    hut.append(Block(shape="rect_small", material="wood", x=6.0, y=0.96))
+    tower = [Block(shape="rect_small", material="stone", x=11.0 + dx, y=0.425 + 0.96 * k, angle=90)
+             for k in range(3) for dx in (-0.6, 0.6)]
+    tower += [Block(shape="rect_medium", material="stone", x=11.0, y=0.96 + 0.96 * k) for k in range(3)]
+    world = World(_ab_level(blocks=hut + tower, pigs=[Pig(x=6.0, y=0.215), Pig(x=11.0, y=3.1)]))
+    groups = structures(world)
+    assert [len(g) for g in groups] == [9, 3]
+    shot = world.shoot("red", *aim_at_base(world, []))
+    assert shot.first_hit == "stone rect small", shot.first_hit  # the tower's first leg, over the hut
+
+
+def test_angrybirds_shortcuts_through_the_protocol_play_what_the_calibration_plays():
+    from deepphy.envs.angrybirds.levels import load_level
+    from deepphy.envs.angrybirds.space import ShootSpace
+    from deepphy.envs.angrybirds.shortcuts import POLICIES, play as play_world
+
+    space = ShootSpace()
+    for name, choose in POLICIES.items():
+        for (record,) in play("angrybirds", f"shortcut-{name}", n_tasks=2, attempts=1):
+            _, shots = play_world(load_level(record.task), choose)
+            assert [(s.action["angle"], s.action["power"]) for s in record.steps] == shots, name
+            assert all(space.parse(s.raw_output) == space.make(*shot) for s, shot in zip(record.steps, shots))
 
 
 def test_a_shortcut_another_environment_declares_is_refused_in_one_line():

@@ -74,6 +74,7 @@ class ShortcutPolicy:
 
     policy: Shortcut
     exploits: str
+    draws: bool = False  # it uses its generator: its runs differ (else every run is the first's)
 
 
 class UnknownShortcut(ValueError):

@@ -6,7 +6,8 @@ sequences of the reference set, scored automatically with 1-3 stars.
 - `space.py`: the `shoot(angle=A, power=P)` syntax (light: no pymunk import);
 - `sim.py`: the pymunk world (damage from impulses, explosions, abilities);
 - `render.py`: the OpenCV side view; `env.py`: the environment; `prompt.py`: the words;
-- `solve.py`: the oracle (`deepphy solve --env angrybirds ...`).
+- `solve.py`: the oracle (`deepphy solve --env angrybirds ...`);
+- `shortcuts.py`: the shortcut baselines (`--model shortcut-aim`, `shortcut-base`).
 """
 
 from deepphy.envs.angrybirds.constants import MAX_BIRDS
@@ -24,6 +25,7 @@ SPEC = EnvSpec(
     max_steps=MAX_BIRDS,
     report=ReportSpec(stars=True, step_checkpoints=(1, 2, 3, 4, 5, MAX_BIRDS), step_noun="shot"),
     solver="deepphy.envs.angrybirds.solve:main",
+    shortcuts="deepphy.envs.angrybirds.shortcuts:SHORTCUTS",
     description="34 levels (scene 1: 21, scene 2: 13): launch the birds in order, kill every pig; 1-3 stars",
 )
 

@@ -8,8 +8,9 @@ most as many decisions as the level has birds. One attempt per level.
 
 Score: SCORE_PIG per pig killed, SCORE_BLOCK per block destroyed and, when the level is
 won, SCORE_UNUSED_BIRD per bird not launched. Stars (on the last step): 0 when lost, else
-1, 2 or 3 by the level's thresholds (levels.star_thresholds), which the observation text
-states. Every step carries the score so far; `info` has the shot's details.
+1, 2 or 3 by the birds used against the oracle's plan (levels.stars_for); the prompt states
+the rule in words, and nothing shown states the oracle's bird count. Every step carries the
+score so far; `info` has the shot's details.
 
 By default the model gets what the paper's prompt gave: the picture, the birds in order
 with their abilities in words, the action syntax, the stars' rule, and the score as the
@@ -61,6 +62,12 @@ class AngryBirdsEnv(Environment):
                                     "physics_hints": options.physics_hints, "state_text": options.state_text}))
         return out
 
+    @property
+    def world(self) -> World | None:
+        """The simulated world of the attempt in progress (privileged: for the shortcut
+        baselines and tools, never shown to a model)."""
+        return self._world
+
     # -- the contract ---------------------------------------------------------------
 
     def reset(self, task: Task) -> Observation:
@@ -83,7 +90,7 @@ class AngryBirdsEnv(Environment):
         won = world.pigs_left == 0
         done = won or self._shots >= len(level.birds)
         score = world.score(self._shots)
-        stars = level.stars.of(won, score) if (done and level.stars) else (int(won) if done else None)
+        stars = level.stars(won, self._shots) if done else None
 
         feedback = self._describe(shot, action, won, done, score, stars)
         settled = self._scene(f"shot_{self._shots}",
@@ -164,9 +171,6 @@ class AngryBirdsEnv(Environment):
             f"Pigs left: {world.pigs_left}.",
             f"Shots used: {self._shots}. Score so far: {world.score(self._shots)}.",
         ]
-        if level.stars is not None:
-            lines.append(f"Stars for a win: 1; 2 from a final score of {level.stars.two}; "
-                         f"3 from {level.stars.three}.")
         return Observation(images=[scene], text="\n".join(lines), action_space=ShootSpace())
 
     def _describe(self, shot: ShotResult, action: Shoot, won: bool, done: bool, score: int, stars: int | None) -> str:

@@ -5,17 +5,16 @@ world units (x right, y up, the ground's surface at y = 0) and rotation in degre
 (counter-clockwise); fixed terrain is boxes (`platforms`) or convex polygons (`terrain`:
 slopes, hills). Its `idea` says what the level teaches or tests; its `title` is shown
 only with the `physics_hints` option. The oracle (solve.py) adds its winning plan, what
-that plan measured, and the star thresholds derived from it (`star_thresholds`). Files
-are written one object per line, so they read and diff well and can be edited by hand;
-after editing a structure, run `deepphy solve --env angrybirds search --levels <id>` to
-refresh the plan and thresholds.
+that plan measured; the stars of a win follow from its bird count (`stars_for`). Files
+are written one object per line, so they read and diff well. The levels are designed in
+design.py: after editing a design, `deepphy solve --env angrybirds make --levels <id>`
+writes its file with the plan and its measurements (`search` searches a plan anew).
 """
 
 from __future__ import annotations
 
 import functools
 import json
-import math
 import re
 from pathlib import Path
 from typing import Literal
@@ -30,11 +29,8 @@ from deepphy.envs.angrybirds.constants import (
     POWER_MAX,
     POWER_MIN,
     SCENE_LEVELS,
-    SCORE_BLOCK,
     SCORE_PIG,
-    SCORE_UNUSED_BIRD,
-    THREE_STAR_DESTRUCTION,
-    TWO_STAR_DESTRUCTION,
+    STARS_MAX,
 )
 
 LEVEL_DIR = Path(__file__).parent / "levels"
@@ -96,24 +92,18 @@ class Shot(_Item):
     power: float = Field(ge=POWER_MIN, le=POWER_MAX)
 
 
-class Stars(_Item):
-    two: int  # least score for 2 stars
-    three: int  # least score for 3 stars
-
-    def of(self, won: bool, score: float) -> int:
-        if not won:
-            return 0
-        return 3 if score >= self.three else 2 if score >= self.two else 1
-
-
 class Oracle(_Item):
     """What the oracle found (solve.py): a winning plan with the fewest birds it needs,
-    chosen for robustness, and what that plan measured."""
+    chosen for robustness, and what that plan and the level measured (oracle.py defines
+    the nudge set and the one-shot grid)."""
 
     plan: list[Shot]
     score: int
     blocks_destroyed: int
-    robustness: float = Field(ge=0, le=1)  # share of the plan's neighbourhood that still wins
+    robustness: float = Field(ge=0, le=1)  # its weakest shot: share of that shot's nudges that still win
+    robustness_all: float = Field(ge=0, le=1)  # share of the nudges applied to every shot at once that win
+    one_shot_wins: int = Field(ge=0)  # one-shot wins on the one-shot grid (from the start)
+    one_shot_isolated: int = Field(ge=0)  # of those, wins with no winning grid neighbour
     searched: int  # plans simulated by the search
     shorter_tried: int  # of those, plans with fewer shots than `plan`: none won
 
@@ -128,7 +118,6 @@ class Level(_Item):
     tnt: list[Tnt] = Field(default_factory=list)
     platforms: list[Platform] = Field(default_factory=list)
     terrain: list[Terrain] = Field(default_factory=list)
-    stars: Stars | None = None  # set by the oracle
     oracle: Oracle | None = None
 
     @model_validator(mode="after")
@@ -150,20 +139,21 @@ class Level(_Item):
         """What any win scores at least: every pig, no block, no bird to spare."""
         return SCORE_PIG * len(self.pigs)
 
+    def stars(self, won: bool, shots: int) -> int:
+        """The stars of an attempt on this level (`stars_for`, with the stored plan's birds;
+        a level without a plan: 1 for any win)."""
+        if self.oracle is None:
+            return int(won)
+        return stars_for(won, shots, len(self.oracle.plan))
 
-def star_thresholds(level: Level, shots: int, blocks: int) -> Stars:
-    """The documented rule (constants.py), from the oracle's plan: `shots` birds used and
-    `blocks` destroyed. 3 stars: the oracle's economy and THREE_STAR_DESTRUCTION of its
-    destruction; 2 stars: one bird fewer to spare, or (with none to spare)
-    TWO_STAR_DESTRUCTION of its destruction."""
-    spare = len(level.birds) - shots
-    pigs = level.least_win_score
-    three = pigs + SCORE_UNUSED_BIRD * spare + SCORE_BLOCK * math.ceil(THREE_STAR_DESTRUCTION * blocks - 1e-9)
-    if spare >= 1:
-        two = three - SCORE_UNUSED_BIRD
-    else:
-        two = pigs + SCORE_BLOCK * math.ceil(TWO_STAR_DESTRUCTION * blocks - 1e-9)
-    return Stars(two=two, three=three)
+
+def stars_for(won: bool, shots: int, needed: int) -> int:
+    """The stars of an attempt that used `shots` birds, on a level whose oracle needs
+    `needed` (constants.py): 0 when lost; 3 with at most `needed` birds, one less for each
+    bird more, at least 1."""
+    if not won:
+        return 0
+    return max(1, STARS_MAX - max(0, shots - needed))
 
 
 def level_ids() -> list[str]:

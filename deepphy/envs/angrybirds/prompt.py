@@ -48,7 +48,7 @@ The picture is a side view ({size}gravity pulls down):
 - red crates marked TNT explode when hit hard, damaging and throwing everything nearby;
 - white dots trace the flight of the previous shot, up to where the bird first hit something.
 The text under the picture names the bird in the slingshot, the birds after it, the pigs
-left, the shots used, the score so far and the level's star thresholds.
+left, the shots used and the score so far.
 
 Goal: kill every pig with the level's birds, launched one at a time in their fixed order.
 A pig dies when it is hit hard enough: by a bird, by a falling or flying block, by a fall
@@ -77,9 +77,8 @@ Action syntax (one line): shoot(angle=A, power=P)
 - A and P are used to {C.ACTION_DECIMALS} decimal places. A reply that does not give one such shot, or
   gives a value out of range, is an invalid action: it is recorded as such and ends the level, lost.
 {hints}
-Score: {score}. Stars: a win earns 1 star, 2 or 3 stars when its final
-score reaches the level's thresholds (stated under the picture). The thresholds are set so that
-3 stars need both: winning with as few birds as good play needs, and destroying much on the way."""
+Score: {score}. Stars come from the birds: a win with as few birds as good
+play needs on this level earns 3 stars, one star less for each bird more, and any win at least 1."""
 
     @staticmethod
     def _hints(w: int, h: int) -> str:

@@ -7,10 +7,12 @@ state, bit for bit, without paying for the settling again. `shoot` launches the 
 and simulates until the shot is over (below).
 
 Damage comes from the physics, never from scripts: each new contact (the collision handler's
-`begin`) is looked up after the step that solved it, its impulse J read from the arbiter
-(what a post-solve handler sees on a first contact, without a Python call for every
-contact of every step), and each body with hit points takes  J x IMPACT_DAMAGE x factor -
-defense  (constants.py). Resting contacts are not first contacts, so a standing structure
+`begin`, which also notes how fast the two bodies close along its normal) is looked up after
+the step that solved it, its impulse J read from the arbiter (what a post-solve handler sees
+on a first contact, without a Python call for every contact of every step). A bird's hit on
+a block or crate deals Science Birds'  closing speed x BIRD_DAMAGE_MASS x factor x
+IMPACT_DAMAGE - defense; every other contact  J x IMPACT_DAMAGE x factor - defense
+(constants.py). Resting contacts are not first contacts, so a standing structure
 takes no damage however heavy it is; what moves and hits does: birds, falling blocks,
 toppling towers, bodies thrown by an explosion. A body pinned against the ground takes the
 whole impulse of what lands on it (the solver stops both), so heavy blocks crush.
@@ -128,7 +130,7 @@ def _settled(content: str) -> tuple[tuple[float, float, float], ...]:
 
 def settled_poses(level: Level) -> tuple[tuple[float, float, float], ...]:
     """(x, y, angle in radians) of every block, pig and crate once the level has settled."""
-    return _settled(level.model_dump_json(exclude={"oracle", "stars"}))  # a new plan does not change it
+    return _settled(level.model_dump_json(exclude={"oracle"}))  # a new plan does not change it
 
 
 class World:
@@ -151,7 +153,7 @@ class World:
         self._shot: ShotResult | None = None
         self._shot_time = 0.0
         self._frame_blasts: list[tuple[float, float, float]] = []
-        self._new_contacts: list[tuple[pymunk.Shape, pymunk.Shape]] = []
+        self._new_contacts: list[tuple[pymunk.Shape, pymunk.Shape, float]] = []
         self._birds_flying: list[Thing] = []  # birds of the current shot
         self._steps = 0
         self.pigs_killed = 0
@@ -331,8 +333,8 @@ class World:
         self._steps += 1
         if self._new_contacts:
             contacts, self._new_contacts = self._new_contacts, []
-            for s1, s2 in contacts:
-                self._hit(s1, s2)
+            for s1, s2, speed in contacts:
+                self._hit(s1, s2, speed)
         if self._steps % SKID_EVERY == 0 and self._birds_flying:
             self._skid()
         self._after_step()
@@ -350,12 +352,12 @@ class World:
         if self._damage_on:
             s1, s2 = arbiter.shapes
             if s1 in self._by_shape or s2 in self._by_shape:
-                self._new_contacts.append((s1, s2))
+                self._new_contacts.append((s1, s2, _closing_speed(arbiter)))
         return True
 
-    def _hit(self, s1: pymunk.Shape, s2: pymunk.Shape) -> None:
-        """A contact that began in the last step: a bird's first hit, and damage by the
-        impulse that resolved it."""
+    def _hit(self, s1: pymunk.Shape, s2: pymunk.Shape, speed: float) -> None:
+        """A contact that began in the last step (`speed`: how fast the two closed along its
+        normal as it began): a bird's first hit, and damage (module doc)."""
         a, b = self._by_shape.get(s1), self._by_shape.get(s2)
         if (a is not None and not a.alive) or (b is not None and not b.alive):
             return
@@ -378,11 +380,16 @@ class World:
         for target, other in ((a, b), (b, a)):
             if target is None or target.kind == "bird" or not target.alive:
                 continue
-            if bird is not None and other is bird:
+            if bird is not None and other is bird and target.kind != "pig":
+                # Science Birds' rule for a bird's hit on a block or crate: the speed it
+                # comes in with, whatever the block weighs (a light block barely stops a
+                # bird, so its impulse would undercount the blow).
                 factor = C.BIRD_MATERIAL_FACTOR[bird.bird].get(target.material or "", 1.0)
+                amount = speed * C.BIRD_DAMAGE_MASS[bird.bird] * factor * C.IMPACT_DAMAGE
             else:
-                factor = C.NON_BIRD_FACTOR
-            self._damage(target, impulse * C.IMPACT_DAMAGE * factor - target.defense)
+                factor = 1.0 if bird is not None and other is bird else C.NON_BIRD_FACTOR
+                amount = impulse * C.IMPACT_DAMAGE * factor
+            self._damage(target, amount - target.defense)
 
     def _first_hit(self, bird: Thing, what: str) -> None:
         bird.hit = True
@@ -604,6 +611,18 @@ class World:
     def moving(self) -> list[Thing]:
         """The live bodies that still move (for tests and tools)."""
         return [t for t in self.things if t.alive and _moving(t.body)]
+
+
+def _closing_speed(arbiter: pymunk.Arbiter) -> float:
+    """How fast the two bodies of a new contact approach each other along its normal, at its
+    first point (before the solver separates them)."""
+    points = arbiter.contact_point_set.points
+    if not points:
+        return 0.0
+    a, b = (s.body for s in arbiter.shapes)
+    p = points[0].point_a
+    relative = b.velocity_at_world_point(p) - a.velocity_at_world_point(p)
+    return abs(relative.dot(arbiter.normal))
 
 
 def _moving(body: pymunk.Body) -> bool:

@@ -80,5 +80,5 @@ SHORTCUTS = {
     "first-id": ShortcutPolicy(first_id, "acts on the element labelled 1 (P1, else A1, B1, C1), then success()"),
     "all-at-once": ShortcutPolicy(all_at_once, "cuts every rope in one swipe at t = 0, then success()"),
     "random-pauses": ShortcutPolicy(random_pauses, "random, but also waits 0.1-3 s half the time and cuts two or "
-                                                   "all ropes at once; success() when nothing is left"),
+                                                   "all ropes at once; success() when nothing is left", draws=True),
 }
