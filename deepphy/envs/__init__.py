@@ -7,9 +7,6 @@ one from elsewhere with `register(spec)`.
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
 from deepphy.chat import Image
 from deepphy.envs.base import (
     Action,
@@ -23,9 +20,7 @@ from deepphy.envs.base import (
     Task,
 )
 from deepphy.envs.spec import EnvSpec, ReportSpec
-
-_registry: dict[str, EnvSpec] = {}
-_discovered = False
+from deepphy.registry import Registry
 
 
 class UnknownEnvironment(KeyError):
@@ -33,43 +28,12 @@ class UnknownEnvironment(KeyError):
         return f"unknown environment {self.args[0]!r}; choose from {', '.join(sorted(specs()))}"
 
 
-def _discover() -> None:
-    global _discovered
-    if _discovered:
-        return
-    _discovered = True
-    for module in pkgutil.iter_modules(__path__):
-        if module.ispkg:
-            spec = getattr(importlib.import_module(f"{__name__}.{module.name}"), "SPEC", None)
-            if isinstance(spec, EnvSpec):
-                _registry.setdefault(spec.name, spec)
-
-
-def specs() -> dict[str, EnvSpec]:
-    """Every registered environment, by name (the packages' order, then registrations)."""
-    _discover()
-    return dict(_registry)
-
-
-def get_spec(name: str) -> EnvSpec:
-    _discover()
-    try:
-        return _registry[name]
-    except KeyError:
-        raise UnknownEnvironment(name) from None
-
-
-def register(spec: EnvSpec) -> EnvSpec:
-    """Add an environment that does not live in deepphy/envs/ (a test's, a plug-in's)."""
-    _discover()
-    if spec.name in _registry and _registry[spec.name] != spec:
-        raise ValueError(f"another environment is already registered as {spec.name!r}")
-    _registry[spec.name] = spec
-    return spec
-
-
-def unregister(name: str) -> None:
-    _registry.pop(name, None)
+_registry: Registry[EnvSpec] = Registry(EnvSpec, __name__, __path__, "environment", UnknownEnvironment,
+                                        packages_only=True)
+specs = _registry.all
+get_spec = _registry.get
+register = _registry.register
+unregister = _registry.unregister
 
 
 def get_env_class(name: str) -> type[Environment]:
