@@ -9,9 +9,11 @@ from deepphy.envs import get_spec, register, specs, unregister
 from deepphy.envs.checker import check_env
 
 BUILT_IN = sorted(specs())
+COMPILED = {"kinetix"}  # traces its JAX programs in a fresh process (~45 s): with the slow tests, which CI runs
 
 
-@pytest.mark.parametrize("name", BUILT_IN)
+@pytest.mark.parametrize("name", [pytest.param(n, marks=[pytest.mark.slow] if n in COMPILED else [])
+                                  for n in BUILT_IN])
 def test_every_registered_environment_keeps_the_contract(name):
     assert check_env(get_spec(name)) == []
 
