@@ -106,11 +106,8 @@ def run_search(ids: list[str], coarse: bool, dry_run: bool, plan: tuple | None =
             failed.append(level_id)
             print(f"{level_id}: NO WIN FOUND ({result.searched} plans simulated, {cpu:.0f} s CPU)", flush=True)
             continue
-        best = result.best
-        print(f"{level_id}: wins with {len(best.plan)} bird(s): {_plan_text(best.plan)}; score {best.score}, "
-              f"{best.blocks} blocks, robustness {result.robustness:.2f} (all at once {result.robustness_all:.2f}); "
-              f"one-shot wins {result.one_shot[0]} ({result.one_shot[1]} isolated); {result.shorter_tried} shorter "
-              f"plans without a win; {result.searched} plans simulated, {cpu:.0f} s CPU", flush=True)
+        print(f"{level_id}: wins with {_measured(result)}; {result.shorter_tried} shorter plans without a win; "
+              f"{result.searched} plans simulated, {cpu:.0f} s CPU", flush=True)
         if not dry_run:
             store(level, result)
     return 1 if failed else 0
@@ -128,14 +125,19 @@ def run_make(ids: list[str], dry_run: bool) -> int:
             failed.append(level_id)
             print(f"{level_id}: {e}", flush=True)
             continue
-        best = result.best
-        print(f"{level_id}: {len(best.plan)} bird(s): {_plan_text(best.plan)}; score {best.score}, "
-              f"{best.blocks} blocks, robustness {result.robustness:.2f} (all at once {result.robustness_all:.2f}); "
-              f"one-shot wins {result.one_shot[0]} ({result.one_shot[1]} isolated); {result.searched} plans "
-              f"simulated, {time.process_time() - t0:.0f} s CPU", flush=True)
+        print(f"{level_id}: {_measured(result)}; {result.searched} plans simulated, "
+              f"{time.process_time() - t0:.0f} s CPU", flush=True)
         if not dry_run:
             store(level, result)
     return 1 if failed else 0
+
+
+def _measured(result) -> str:
+    """A found or made plan and what was measured of it, as search and make print them."""
+    best = result.best
+    return (f"{len(best.plan)} bird(s): {_plan_text(best.plan)}; score {best.score}, {best.blocks} blocks, "
+            f"robustness {result.robustness:.2f} (all at once {result.robustness_all:.2f}); "
+            f"one-shot wins {result.one_shot[0]} ({result.one_shot[1]} isolated)")
 
 
 def _plan_text(plan) -> str:
