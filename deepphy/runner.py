@@ -28,7 +28,7 @@ from deepphy.runs.discovery import METRICS, actor_name, new_run_id
 from deepphy.runs.records import summaries_json
 from deepphy.runs.status import RunStatus, remove_status, write_status
 from deepphy.runs.store import CONFIG, RunStore, check_records, read_records
-from deepphy.scheduler import AgentWorkerModel, LocalAgentModel, Scheduler, WorkerModel, ray_errors
+from deepphy.scheduler import AgentWorkerModel, EnvPool, LocalAgentModel, Scheduler, WorkerModel, ray_errors
 from deepphy.start_view import StartView
 
 RAY_TIMEOUT_S = 60.0
@@ -51,15 +51,16 @@ class RunOutcome:
 
 @dataclass
 class Shared:
-    """What a suite lends a run (`evaluate(shared=...)`), and stops itself when its last
-    cell is done: the environment workers of the run's setting (several cells use them at
-    once), the endpoints' rate limiters (created by the suite, so one cell ending never
-    kills the limiter another cell of that endpoint is using) and the model worker of each
-    user's agent, by model name (its setup, a checkpoint loaded on a GPU say, done once for
-    all its cells). `watch(metrics, scheduler)` hears them once the run's actors are up: the
-    suite's progress view reads them, and a suite that stops stops the scheduler."""
+    """What a suite lends a cell (`evaluate_cell`), and stops itself when its last cell is
+    done: the environment workers of the cell's setting as one `EnvPool` (the cells of a
+    setting running at once share its calls), the endpoints' rate limiters (created by the
+    suite, so one cell ending never kills the limiter another cell of that endpoint is
+    using) and the model worker of each user's agent, by model name (its setup, a checkpoint
+    loaded on a GPU say, done once for all its cells). `watch(metrics, scheduler)` hears them
+    once the cell's actors are up: the suite's progress view reads them, and a suite that
+    stops stops the scheduler (all in the suite's one event loop)."""
 
-    env_workers: list[Any]
+    pool: EnvPool
     watch: Callable[[Any, Any], None] = lambda metrics, scheduler: None
     agent_workers: dict[str, Any] = field(default_factory=dict)
 
@@ -74,45 +75,49 @@ def make_env_workers(spec: EnvSpec, options: EnvOptions, runtime: RuntimeOptions
 
 
 def evaluate(config: RunConfig, out: str | Path, runtime: RuntimeOptions | None = None, *,
-             stream=None, shared: Shared | None = None, view: StartView | None = None) -> RunOutcome:
+             stream=None, view: StartView | None = None) -> RunOutcome:
     """Run (or resume) an evaluation into `out`. Every check that needs no Ray comes first
     and raises ConfigError / RunDirError / the models' errors (unknown model, missing key)
     before Ray starts and without writing anything; a finished run returns at once, without
-    Ray. `shared`: a suite's environment workers and limiters, used and left running.
-    `runtime.in_process`: the workers in this process, no Ray (deepphy.in_process).
+    Ray. `runtime.in_process`: the workers in this process, no Ray (deepphy.in_process).
     `view`: the command's start view (one is made here if the runtime shows progress)."""
-    began = time.time()
     stream = stream or sys.stderr  # looked up per call: pytest and others swap sys.stderr after import
     runtime = runtime or RuntimeOptions()
-    the_plan = plan(config)
-    endpoints = run_endpoints(config, runtime.models_file)
-    # a missing key (an agent that cannot be built) fails here, before anything is written
-    make_agent(config.model, runtime.models_file, env=config.env, agent=config.agent)
-    store = RunStore.claim(out, config)  # another run's directory, or one in use: fails here
-    try:
-        existing = read_records(out)
-        check_records(out, existing, the_plan.k_max)
-        total = the_plan.episodes_total
-        done = the_plan.episodes_done(existing)
-        if done == total:  # nothing to do: no Ray
-            store.close()
-            return RunOutcome(out=Path(out), episodes_total=total, episodes_done=done, new_records=0, unfinished=[])
-        store.start_writing()  # a read-only or unwritable directory: fails here
-    except BaseException:
-        store.discard()
-        raise
+    run = _Run.checked(config, out, runtime, stream)
+    if isinstance(run, RunOutcome):
+        return run
     if view is None and runtime.progress:
         view = StartView(stream)
     if view:
         view.repeat()
-    run = _Run(the_plan, runtime, store, existing, done, stream, began, view)
+    run.view = view
     try:
-        return run.in_process() if runtime.in_process else run.on_ray(endpoints, shared)
+        if runtime.in_process:
+            return run.in_process()
+        started_ray = ensure_ray(runtime, run.say)  # no cluster at the address: fails before anything is written
+        try:
+            with frozen_heap():  # the heap of the start, Ray's included, is not scanned again (deepphy/collector.py)
+                return asyncio.run(run.on_ray())
+        finally:
+            disconnect(started_ray)
     finally:
         if view:
             view.stop()
-        remove_status(store.path)
-        store.discard()  # closes; removes a directory this run made and recorded nothing in
+        run.close()
+
+
+async def evaluate_cell(config: RunConfig, out: str | Path, runtime: RuntimeOptions, shared: Shared, *,
+                        stream) -> RunOutcome:
+    """Run (or resume) a suite's cell into `out`, as `evaluate` does, in the suite's event
+    loop (connected to Ray already) on what the suite lends it (`shared`, used and left
+    running), without a view of its own."""
+    run = _Run.checked(config, out, runtime, stream)
+    if isinstance(run, RunOutcome):
+        return run
+    try:
+        return await run.on_ray(shared)
+    finally:
+        run.close()
 
 
 @dataclass
@@ -127,7 +132,36 @@ class _Run:
     done: int  # episodes finished before this session
     stream: Any
     began: float  # time.time() when the run began: its elapsed time counts from here
-    view: StartView | None  # what the run is doing until its progress line begins
+    view: StartView | None = None  # what the run is doing until its progress line begins
+
+    @classmethod
+    def checked(cls, config: RunConfig, out: str | Path, runtime: RuntimeOptions, stream) -> _Run | RunOutcome:
+        """The run into `out` with its directory claimed, once every check that needs no Ray
+        has passed (nothing written if one fails); a finished run's outcome, at once."""
+        began = time.time()
+        the_plan = plan(config)
+        run_endpoints(config, runtime.models_file)  # an endpoint the models file lacks fails here
+        # a missing key (an agent that cannot be built) fails here, before anything is written
+        make_agent(config.model, runtime.models_file, env=config.env, agent=config.agent)
+        store = RunStore.claim(out, config)  # another run's directory, or one in use: fails here
+        try:
+            existing = read_records(out)
+            check_records(out, existing, the_plan.k_max)
+            total = the_plan.episodes_total
+            done = the_plan.episodes_done(existing)
+            if done == total:  # nothing to do: no Ray
+                store.close()
+                return RunOutcome(out=Path(out), episodes_total=total, episodes_done=done, new_records=0,
+                                  unfinished=[])
+            store.start_writing()  # a read-only or unwritable directory: fails here
+        except BaseException:
+            store.discard()
+            raise
+        return cls(the_plan, runtime, store, existing, done, stream, began)
+
+    def close(self) -> None:
+        remove_status(self.store.path)
+        self.store.discard()  # closes; removes a directory this run made and recorded nothing in
 
     @property
     def config(self) -> RunConfig:
@@ -155,21 +189,26 @@ class _Run:
                 model = LocalAgentModel(model, self.config)
             metrics = Actor(lambda: MetricsImpl(self.total, self.plan.k_max, spec.max_steps, run=self._run_info(),
                                                 started=self.began))
-            return self._drive(env_workers, model, metrics, status, close_model=model.close)
+            with frozen_heap():  # the heap of the start is not scanned again (deepphy/collector.py)
+                return asyncio.run(self._drive(EnvPool(env_workers, self.runtime.step_timeout_s), model, metrics,
+                                               status, close_model=model.close))
         finally:
             for t in loops:
                 t.close()
 
-    def on_ray(self, endpoints: list, shared: Shared | None) -> RunOutcome:
-        """The workers as Ray actors, on a local Ray started here or the cluster joined."""
-        started_ray = ensure_ray(self.runtime, self.say)  # no cluster at the address: fails before anything is written
+    async def on_ray(self, shared: Shared | None = None) -> RunOutcome:
+        """The workers as Ray actors (this process is connected to Ray): the run's own, or
+        those a suite lends it (`shared`)."""
         # Ray at import (seconds): loaded by ensure_ray by now, never by a run in this process
         import ray
         from deepphy.actors.rate_limiter import ensure_limiter
 
         config, runtime, store, spec = self.config, self.runtime, self.store, self.plan.spec
-        actors: list[Any] = []
+        endpoints = run_endpoints(config, runtime.models_file)
+        env_workers: list[Any] = []  # the actors this run started, stopped at its end however it ends
         model_actors: list[Any] = []
+        limiters: list[Any] = []
+        metrics = None
         try:
             self.say("starting workers")
             # Named (deepphy.runs.discovery): a dashboard or an operator can find a live run's
@@ -183,10 +222,11 @@ class _Run:
                 self.view.line(f"deepphy: run {status.run_id} on Ray at {status.ray_address}; follow it with "
                                f"`deepphy watch {store.path}`")
             if shared is not None:
-                env_workers = shared.env_workers
+                pool, env_workers = shared.pool, []
             else:
                 env_workers = make_env_workers(spec, self.plan.options, runtime, actor_name(run_id, "env"),
                                                lambda i: store.log_path(f"env{i}"))
+                pool = EnvPool(env_workers, runtime.step_timeout_s)
             # The driver owns the endpoints' limiters, so a model worker's restart keeps their windows.
             limiters = [limiter for e in endpoints if (limiter := ensure_limiter(e)) is not None]
             if not endpoints and config.agent is None:  # a baseline answers in this process: no worker, no Ray call
@@ -199,7 +239,7 @@ class _Run:
                 worker = worker or model_actors[0]
                 probe = (store.path / CONFIG).resolve()
                 try:
-                    seen = _started(worker.read_file.remote(str(probe)), "the model worker", runtime)
+                    seen = await _started(worker.read_file.remote(str(probe)), "the model worker", runtime)
                 except ray.exceptions.RayActorError as e:
                     if config.agent is None or not e.actor_init_failed:
                         raise
@@ -211,34 +251,32 @@ class _Run:
                          else WorkerModel(worker, shares_files))
             metrics = make_metrics_actor(self.total, self.plan.k_max, spec.max_steps, name=actor_name(run_id, METRICS),
                                          run=self._run_info(), started=self.began)
-            actors = [*(env_workers if shared is None else []), *model_actors, metrics,
-                      *(limiters if shared is None else [])]
-            return self._drive(env_workers, model, metrics, status, shared=shared)
+            return await self._drive(pool, model, metrics, status, shared=shared)
         finally:
             # A model worker closes its connections itself, or its client complains as it dies.
             try:
-                closing = [worker.close.remote() for worker in model_actors]
-                if closing:
-                    ray.wait(closing, num_returns=len(closing), timeout=10)
+                async with asyncio.timeout(10):
+                    await asyncio.gather(*(worker.close.remote() for worker in model_actors))
             except Exception:  # noqa: BLE001 - a lost worker has nothing to close
                 pass
-            for actor in actors:
-                try:
-                    ray.kill(actor)
-                except Exception:  # noqa: BLE001 - already gone
-                    pass
-            disconnect(started_ray)
+            finally:  # also when the wait above is cancelled (Ctrl-C)
+                for actor in [*env_workers, *model_actors, *([metrics] if metrics else []),
+                              *(limiters if shared is None else [])]:
+                    try:
+                        ray.kill(actor)
+                    except Exception:  # noqa: BLE001 - already gone
+                        pass
 
     def _run_info(self) -> dict[str, Any]:
         """What the metrics actor tells dashboards about the run."""
         return {"run_dir": str(self.store.path.resolve()), "config": self.config.model_dump(mode="json")}
 
-    def _drive(self, env_workers: list[Any], model: Any, metrics: Any, status: RunStatus,
-               shared: Shared | None = None, close_model: Callable[[], Any] | None = None) -> RunOutcome:
+    async def _drive(self, pool: EnvPool, model: Any, metrics: Any, status: RunStatus,
+                     shared: Shared | None = None, close_model: Callable[[], Any] | None = None) -> RunOutcome:
         # Not waited for here: the metrics actor's process starts while the workers start and the
         # first attempts run (its calls queue in order until it is up); `_drive` checks it came up.
         metrics_ready = metrics.add.remote(summaries_json([r.summary() for r in self.existing]), resumed=True)
-        scheduler = Scheduler(self.plan, self.runtime, self.store, env_workers, model, metrics)
+        scheduler = Scheduler(self.plan, self.runtime, self.store, pool, model, metrics)
         if shared is not None:
             shared.watch(metrics, scheduler)
         if self.view:  # the progress line from here on
@@ -249,17 +287,13 @@ class _Run:
                     f"{scheduler.recorded} · {_duration(time.time() - self.began)} (no figures yet: the "
                     "metrics actor has not answered)")
 
-        async def drive() -> list[dict[str, int]]:
-            try:
-                await _drive(scheduler, self.existing, env_workers, metrics, metrics_ready, self.runtime, self.stream,
-                             self.store.path, status, without_figures)
-                return await _worker_stats(env_workers)
-            finally:
-                if close_model is not None:
-                    await close_model()
-
-        with frozen_heap():  # the heap of the start, Ray's included, is not scanned again (deepphy/collector.py)
-            worker_stats = asyncio.run(drive())
+        try:
+            await _drive(scheduler, self.existing, pool.workers, metrics, metrics_ready, self.runtime, self.stream,
+                         self.store.path, status, without_figures)
+            worker_stats = await _worker_stats(pool.workers)
+        finally:
+            if close_model is not None:
+                await close_model()
         # What the directory held at the start and what this session wrote to it (the store
         # raises on a write that fails): not the log read back, which took ~0.13 ms a record
         # (0.3 s at the end of a 2,500-attempt run).
@@ -280,14 +314,13 @@ def _raised(error: BaseException) -> str:
     return raised[-1] if raised else str(error).strip().splitlines()[0]
 
 
-def _started(ref: Any, what: str, runtime: RuntimeOptions) -> Any:
+async def _started(ref: Any, what: str, runtime: RuntimeOptions) -> Any:
     """The result of an actor's first call: its process must start first, which takes long on
     a busy machine (bounded like an environment step); one line if it never does."""
-    import ray  # loaded by ensure_ray: a run in this process never comes here
-
     try:
-        return ray.get(ref, timeout=runtime.step_timeout_s)
-    except ray.exceptions.GetTimeoutError:
+        async with asyncio.timeout(runtime.step_timeout_s):
+            return await ref
+    except TimeoutError:
         raise ClusterUnavailable(f"{what} did not start within {runtime.step_timeout_s:g} s (an overloaded "
                                  "machine, or no room on the cluster); run the same command again to resume") from None
 

@@ -12,6 +12,7 @@ for a resume; the other episodes go on) and the cost budget.
 from __future__ import annotations
 
 import asyncio
+import itertools
 import json
 import logging
 import sys
@@ -160,6 +161,31 @@ class StepBatcher:
         self.size = max(1, min(BATCH_MAX, int(CALL_S / per_decision)))
 
 
+class EnvPool:
+    """The environment workers of one setting as the runs that use them see them: a
+    `StepBatcher` per worker and the attempts each worker holds. A run has one of its own; a
+    suite's cells of one setting share one in the suite's event loop, so their decisions
+    travel in the same calls and an attempt goes to the worker with the fewest of anyone's."""
+
+    def __init__(self, workers: Sequence[Any], timeout_s: float) -> None:
+        self.workers = list(workers)
+        self.batchers = [StepBatcher(w, timeout_s) for w in self.workers]
+        self.load = [0] * len(self.workers)  # live attempts per worker
+        self.attempts = itertools.count()  # an attempt's instance on its worker is named uniquely
+
+    @contextmanager
+    def attempt(self, episode: str, initial: FirstObservations) -> Iterator[WorkerEnv]:
+        """The least-loaded worker's handle for one attempt, released when it ends."""
+        index = min(range(len(self.workers)), key=lambda i: self.load[i])
+        env = WorkerEnv(self.batchers[index], f"{episode}|{next(self.attempts)}", initial)
+        self.load[index] += 1
+        try:
+            yield env
+        finally:
+            self.load[index] -= 1
+            env.release()
+
+
 class FirstObservations:
     """The driver's first observations by task (reset is deterministic: the contract), each
     asked of a worker once. An attempt that starts while its task's is on its way waits for
@@ -292,7 +318,7 @@ class Scheduler:
         plan: RunPlan,
         runtime: RuntimeOptions,
         store: RunStore,
-        env_workers: list[Any],
+        env_workers: EnvPool | Sequence[Any],  # a suite's pool shared by the cells of a setting, or this run's workers
         model: ModelHandle,
         metrics: Any,  # the metrics actor; None: no live figures (`deepphy play`)
         max_model_requeues: int = MODEL_REQUEUES,
@@ -305,9 +331,7 @@ class Scheduler:
         self.prompt = plan.prompt()
         self.tasks = list(plan.tasks)
         self.store = store
-        self.env_workers = env_workers
-        self.load = [0] * len(env_workers)  # live episodes per worker
-        self.batchers = [StepBatcher(w, runtime.step_timeout_s) for w in env_workers]
+        self.pool = env_workers if isinstance(env_workers, EnvPool) else EnvPool(env_workers, runtime.step_timeout_s)
         self.model = model
         self.answers_at_once = getattr(model, "answers_at_once", False)
         self.metrics = metrics
@@ -445,15 +469,9 @@ class Scheduler:
         if self.local_env is not None:
             return await run_attempt(self.spec, self.prompt, self.config, task, run, attempt, previous,
                                      self.local_env, self, self.store)
-        index = min(range(len(self.env_workers)), key=lambda i: self.load[i])
-        env = WorkerEnv(self.batchers[index], f"{task.id}|{run}|{attempt}|{time.monotonic_ns()}", self.initial)
-        self.load[index] += 1
-        try:
+        with self.pool.attempt(f"{task.id}|{run}|{attempt}", self.initial) as env:
             return await run_attempt(self.spec, self.prompt, self.config, task, run, attempt, previous,
                                      env, self, self.store)
-        finally:
-            self.load[index] -= 1
-            env.release()
 
     # -- the model, as the protocol's ModelHandle: budget, timeout, errors ---------------
 

@@ -14,14 +14,14 @@ Re-running the same command resumes every cell. A suite whose cells changed is r
 (a cell's config differs, or a cell is gone); one that only adds cells (another model,
 say) extends the manifest. Every cell is checked (options, tasks, models and keys, its
 directory) before Ray starts; the cells then run interleaved in ONE Ray runtime, started
-once (`Interleaved`: bounded numbers of cells and environment settings at once, the cells
-of one setting sharing its environment workers, the cells of one endpoint its rate
-limiter), with one progress view for the suite.
+once, and one event loop (`Interleaved`: bounded numbers of cells and environment settings
+at once, the cells of one setting sharing its environment workers and their calls, the
+cells of one endpoint its rate limiter), with one progress view for the suite.
 """
 
 from __future__ import annotations
 
-import concurrent.futures as cf
+import asyncio
 import itertools
 import json
 import re
@@ -44,7 +44,9 @@ from deepphy.yamlfile import read_yaml_model
 from deepphy.metrics.live import _duration, _rate, format_progress
 from deepphy.plan import plan
 from deepphy.ray_connect import disconnect, ensure_ray
-from deepphy.runner import Shared, evaluate, make_env_workers
+from deepphy.collector import frozen_heap
+from deepphy.runner import RunOutcome, Shared, evaluate_cell, make_env_workers
+from deepphy.scheduler import EnvPool
 from deepphy.runs.discovery import actor_name, is_run_dir, new_run_id
 from deepphy.runs.manifest import MANIFEST, Cell, read_manifest, write_manifest
 from deepphy.runs.store import RunStore, read_records
@@ -192,6 +194,7 @@ SETTINGS_AT_ONCE = 2  # environment settings whose workers live at once: one sim
 # CPUs one run's workers would (a third setting would add processes and memory for little more overlap)
 CELLS_AT_ONCE = 8  # cells running at once: each has a model worker process and its own episodes in flight
 VIEW_TTY_S, VIEW_LOG_S = 1.0, 10.0  # the suite's progress line: on a terminal, in a log
+VIEW_WAIT_S = 5.0  # for the figures of a progress line; past it, the line waits for the next turn
 
 
 @dataclass
@@ -250,8 +253,9 @@ def setting_of(config: RunConfig) -> str:
 
 
 class Interleaved:
-    """Runs a suite's cells at once in this driver, each cell's `evaluate` in a thread of
-    its own (its own scheduler and event loop; Ray calls release the GIL while they wait).
+    """Runs a suite's cells at once in this driver, in one event loop: each cell is a task
+    (its own scheduler over its plan), the cells of one setting share its workers' `EnvPool`,
+    and stopping a cell is setting its scheduler's flag in that same loop.
 
     Bounds: at most SETTINGS_AT_ONCE environment settings have workers (started when their
     first cell starts, stopped after their last cell ends; cells come in setting order) and
@@ -270,9 +274,9 @@ class Interleaved:
         self.progress = dict(progress)  # cell -> (episodes done, total): at the start, then as snapshots come
         self.new_attempts: dict[str, int] = {}
         self.id = new_run_id()
-        self.workers: dict[str, list[Any]] = {}  # setting -> its environment workers
+        self.pools: dict[str, EnvPool] = {}  # setting -> its environment workers, as the cells share them
         self.settings_started = 0
-        self.running: dict[Any, Cell] = {}  # future -> cell
+        self.running: dict[asyncio.Task, Cell] = {}  # a cell's task -> the cell
         self.watched: dict[str, tuple[Any, Any]] = {}  # cell -> (metrics actor, scheduler)
         self.limiters: dict[str, Any] = {}  # endpoint key -> its limiter actor
         self.agent_workers: dict[str, Any] = {}  # a user's agent (model name) -> the model worker of its cells
@@ -293,22 +297,36 @@ class Interleaved:
                         self.limiters[endpoint.limiter_key] = limiter
         self._start_agent_workers()
         self.began, self.episodes_at_start = time.monotonic(), sum(d for d, _ in self.progress.values())
-        outcomes: dict[str, CellOutcome] = {}
-        pool = cf.ThreadPoolExecutor(max_workers=CELLS_AT_ONCE, thread_name_prefix="deepphy-cell")
         try:
-            while self.running or (self.waiting and self.error is None):
+            with frozen_heap():  # the heap of the start, Ray's included, is not scanned again (deepphy/collector.py)
+                outcomes = asyncio.run(self._cells())
+        finally:
+            for setting in list(self.pools):
+                self._release_setting(setting, force=True)
+            for limiter in self.limiters.values():
+                _kill(limiter)
+            self._stop_agent_workers()
+            if self.tty and self.show:
+                self.stream.write("\n")
+                self.stream.flush()
+        if self.error is not None:
+            raise self.error
+        return outcomes
+
+    async def _cells(self) -> dict[str, CellOutcome]:
+        """Start cells while there is room, take each as it ends, show the view. Ctrl-C (which
+        `asyncio.run` turns into cancelling this task) stops the suite as a failing cell does."""
+        outcomes: dict[str, CellOutcome] = {}
+        while self.running or (self.waiting and self.error is None):
+            try:
                 while self.error is None and len(self.running) < CELLS_AT_ONCE and (cell := self._next()):
-                    self.running[pool.submit(self._evaluate, cell)] = cell
-                try:
-                    done, _ = cf.wait(self.running, timeout=VIEW_TTY_S if self.tty else VIEW_LOG_S,
-                                      return_when=cf.FIRST_COMPLETED)
-                except KeyboardInterrupt as e:
-                    self._stop(e)
-                    continue
-                for future in done:
-                    cell = self.running.pop(future)
+                    self.running[asyncio.ensure_future(self._evaluate(cell))] = cell
+                done, _ = await asyncio.wait(self.running, timeout=VIEW_TTY_S if self.tty else VIEW_LOG_S,
+                                             return_when=asyncio.FIRST_COMPLETED)
+                for task in done:
+                    cell = self.running.pop(task)
                     try:
-                        outcome = future.result()
+                        outcome = task.result()
                     except BaseException as e:  # noqa: BLE001 - raised once the other cells have stopped
                         self._stop(e)
                         self._say(f"cell {cell.dir} failed: {one_line(str(e)) or type(e).__name__}")
@@ -321,22 +339,14 @@ class Interleaved:
                                   f"complete ({outcome.new_records} new attempt records)")
                     self.watched.pop(cell.dir, None)
                     self._release_setting(setting_of(cell.config))
-                self._view()
-        except BaseException as e:  # e.g. Ctrl-C outside the wait: the running cells stop before it is raised
-            self._stop(e)
-            raise
-        finally:
-            pool.shutdown(wait=True)
-            for setting in list(self.workers):
-                self._release_setting(setting, force=True)
-            for limiter in self.limiters.values():
-                _kill(limiter)
-            self._stop_agent_workers()
-            if self.tty and self.show:
-                self.stream.write("\n")
-                self.stream.flush()
-        if self.error is not None:
-            raise self.error
+                await self._view()
+            except asyncio.CancelledError:  # Ctrl-C: the running cells finish their attempts in flight
+                asyncio.current_task().uncancel()  # (so this task's own deadlines work again)
+                self._stop(KeyboardInterrupt())
+            except BaseException as e:  # the running cells stop before it is raised
+                self._stop(e)
+                await asyncio.gather(*self.running, return_exceptions=True)
+                raise
         return outcomes
 
     def _start_agent_workers(self) -> None:
@@ -365,7 +375,7 @@ class Interleaved:
     # -- which cell next, and the workers of its setting ---------------------------------
 
     def _next(self) -> Cell | None:
-        active = set(self.workers)
+        active = set(self.pools)
         room = len(active) < SETTINGS_AT_ONCE
         candidates = [c for c in self.waiting if setting_of(c.config) in active]
         if room:
@@ -382,30 +392,30 @@ class Interleaved:
         cell = min(candidates, key=lambda c: (busy.count(endpoint(c)), self.waiting.index(c)))
         self.waiting.remove(cell)
         setting = setting_of(cell.config)
-        if setting not in self.workers:
-            self.workers[setting] = self._start_workers(cell.config)
+        if setting not in self.pools:
+            self.pools[setting] = self._start_workers(cell.config)
         return cell
 
-    def _start_workers(self, config: RunConfig) -> list[Any]:
+    def _start_workers(self, config: RunConfig) -> EnvPool:
         setting = plan(config)
         n = self.settings_started
         self.settings_started += 1
         (self.root / LOGS).mkdir(parents=True, exist_ok=True)
-        return make_env_workers(setting.spec, setting.options, self.runtime, actor_name(self.id, f"{n}-env"),
-                                lambda i: str(self.root / LOGS / f"{n}-{setting.spec.name}-env{i}.log"),
-                                cpus=1 / SETTINGS_AT_ONCE)
+        workers = make_env_workers(setting.spec, setting.options, self.runtime, actor_name(self.id, f"{n}-env"),
+                                   lambda i: str(self.root / LOGS / f"{n}-{setting.spec.name}-env{i}.log"),
+                                   cpus=1 / SETTINGS_AT_ONCE)
+        return EnvPool(workers, self.runtime.step_timeout_s)
 
     def _release_setting(self, setting: str, force: bool = False) -> None:
         """Stop a setting's workers once none of its cells runs or waits."""
         still = any(setting_of(c.config) == setting for c in [*self.waiting, *self.running.values()])
-        if setting in self.workers and (force or not still):
-            for worker in self.workers.pop(setting):
+        if setting in self.pools and (force or not still):
+            for worker in self.pools.pop(setting).workers:
                 _kill(worker)
 
-    def _evaluate(self, cell: Cell):
-        return evaluate(cell.config, self.root / cell.dir, self.runtime, stream=self.stream,
-                        shared=Shared(self.workers[setting_of(cell.config)], lambda m, s: self._watch(cell, m, s),
-                                      self.agent_workers))
+    async def _evaluate(self, cell: Cell) -> RunOutcome:
+        shared = Shared(self.pools[setting_of(cell.config)], lambda m, s: self._watch(cell, m, s), self.agent_workers)
+        return await evaluate_cell(cell.config, self.root / cell.dir, self.runtime, shared, stream=self.stream)
 
     def _watch(self, cell: Cell, metrics: Any, scheduler: Any) -> None:
         self.watched[cell.dir] = (metrics, scheduler)
@@ -426,9 +436,7 @@ class Interleaved:
         self.stream.flush()
         self.last_view = 0.0  # the suite line again at once, below what was said
 
-    def _view(self) -> None:
-        import ray  # loaded by run_suite's ensure_ray (a dry run never imports it)
-
+    async def _view(self) -> None:
         now = time.monotonic()
         if not self.show or now - self.last_view < (VIEW_TTY_S if self.tty else VIEW_LOG_S) - 0.05:
             return
@@ -436,10 +444,11 @@ class Interleaved:
         watched = dict(self.watched)
         snaps: dict[str, dict] = {}
         try:
-            got = ray.get([m.snapshot.remote() for m, _ in watched.values()], timeout=5)
-            snaps = dict(zip(watched, got))
-            limits = dict(zip(self.limiters, ray.get([lim.stats.remote() for lim in self.limiters.values()],
-                                                     timeout=5)))
+            async with asyncio.timeout(VIEW_WAIT_S):
+                got = await asyncio.gather(*(m.snapshot.remote() for m, _ in watched.values()))
+                snaps = dict(zip(watched, got))
+                limits = dict(zip(self.limiters, await asyncio.gather(*(lim.stats.remote()
+                                                                        for lim in self.limiters.values()))))
         except Exception:  # noqa: BLE001 - progress is best effort
             return
         for cell, snap in snaps.items():

@@ -148,3 +148,54 @@ def test_attempts_starting_together_ask_a_worker_for_their_tasks_first_observati
     envs, seen = asyncio.run(start_together(worker))
     assert isinstance(seen[0], WorkerLost)  # the asker's attempt is re-run by the scheduler
     assert worker.calls == ["e0", "e1"] and seen[1:] == ["first scene of 2"] * 5
+
+
+def test_the_runs_of_a_shared_env_pool_share_its_calls_and_its_placement():
+    """A suite's cells of one setting share one EnvPool in one event loop: an attempt of
+    either goes to the worker holding the fewest attempts of both, an attempt of the same
+    task, run and number in two cells gets an instance of its own, and the decisions of both
+    waiting for a worker travel in the same calls. No Ray: workers whose calls are listed."""
+    from types import SimpleNamespace
+
+    from deepphy.scheduler import EnvPool, FirstObservations
+
+    class Worker:
+        def __init__(self) -> None:
+            self.calls, self.step_batch = [], self
+
+        def remote(self, requests):
+            self.calls.append([episode for episode, _, _ in requests])
+            return self._answer(requests)
+
+        async def _answer(self, requests):
+            return [SimpleNamespace(done=True, episode=episode) for episode, _, _ in requests]
+
+    w0, w1 = Worker(), Worker()
+    pool = EnvPool([w0, w1], 5.0)
+
+    async def placed():
+        cell_a, cell_b = FirstObservations(8), FirstObservations(8)
+        with pool.attempt("t|0|1", cell_a) as a1, pool.attempt("t|0|1", cell_b) as b1, \
+                pool.attempt("u|0|1", cell_b) as b2:
+            assert [e.worker for e in (a1, b1, b2)] == [w0, w1, w0] and pool.load == [2, 1]
+            assert len({a1.episode, b1.episode, b2.episode}) == 3
+            done = await asyncio.gather(a1.step(None), b2.step(None), b1.step(None))
+            assert [d.episode for d in done] == [a1.episode, b2.episode, b1.episode]
+        assert pool.load == [0, 0]
+
+    asyncio.run(placed())
+    worker = Worker()
+    pool = EnvPool([worker], 5.0)
+
+    async def decisions(cell: str, n: int):
+        initial = FirstObservations(8)
+        for i in range(n):
+            with pool.attempt(f"{cell}|{i}", initial) as env:
+                await env.step(None)
+
+    async def two_cells():
+        await asyncio.gather(*(decisions(cell, 1) for cell in "ABABABAB"))
+
+    asyncio.run(two_cells())
+    assert sum(map(len, worker.calls)) == 8 and len(worker.calls) < 8
+    assert any({e[0] for e in call} == {"A", "B"} for call in worker.calls), worker.calls

@@ -7,6 +7,7 @@ import os
 import re
 import signal
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -61,6 +62,7 @@ def suite_file(tmp_path_factory):
 
 
 SPANS: dict[str, tuple[float, float]] = {}  # cell -> (start, end) of its evaluate in the `done` suite
+THREADS: set[str] = set()  # the threads the `done` suite's cells ran on
 
 
 @pytest.fixture(scope="module")
@@ -70,26 +72,29 @@ def done(ray_cluster, suite_file, tmp_path_factory):
     import deepphy.suite
 
     root = tmp_path_factory.mktemp("suite") / "root"
-    evaluate = deepphy.suite.evaluate
+    evaluate_cell = deepphy.suite.evaluate_cell
 
-    def timed(config, out, *args, **kw):
+    async def timed(config, out, *args, **kw):
+        THREADS.add(threading.current_thread().name)
         start = time.monotonic()
         try:
-            return evaluate(config, out, *args, **kw)
+            return await evaluate_cell(config, out, *args, **kw)
         finally:
             SPANS[str(Path(out).relative_to(root))] = (start, time.monotonic())
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(deepphy.suite, "evaluate", timed)
+        mp.setattr(deepphy.suite, "evaluate_cell", timed)
         outcomes = run_suite(load_suite(str(suite_file)), root, RUNTIME)
     assert [(o.done, o.total) for o in outcomes] == [(2, 2)] * 2 + [(2, 2)] * 2
     return root
 
 
 def test_cells_run_at_once_and_record_what_each_records_alone(done, tmp_path):
-    # Two settings (I-PHYRE, PHYRE) x two formats: all four cells start before any ends.
+    # Two settings (I-PHYRE, PHYRE) x two formats: all four cells start before any ends, in
+    # one event loop on the calling thread (no thread per cell).
     assert sorted(SPANS) == [c.dir for c in read_manifest(done)]
     assert max(start for start, _ in SPANS.values()) < min(end for _, end in SPANS.values())
+    assert THREADS == {threading.main_thread().name}
     cell = read_manifest(done)[3]  # mock/phyre/wm, run alone (its own workers and Ray calls)
     assert evaluate(cell.config, tmp_path / "alone", RUNTIME).complete
     assert views(tmp_path / "alone") == views(done / cell.dir)
@@ -189,6 +194,39 @@ def test_a_killed_suite_resumes_to_the_records_of_an_uninterrupted_one(done, sui
         assert views(root / cell.dir) == views(done / cell.dir), cell.dir
 
 
+def test_ctrl_c_stops_the_suite_after_its_attempts_in_flight_and_the_same_command_resumes(done, tmp_path,
+                                                                                         monkeypatch):
+    """Ctrl-C (SIGINT: `asyncio.run` cancels the suite's task) once the first attempt is
+    recorded, one cell at a time: the running cell finishes its attempts in flight, no other
+    cell starts, KeyboardInterrupt is raised; the same suite then resumes to the records of
+    an uninterrupted run."""
+    import deepphy.suite
+    from deepphy.runs.store import RunStore
+
+    monkeypatch.setattr(deepphy.suite, "CELLS_AT_ONCE", 1)
+    append, interrupted = RunStore.append, []
+
+    def append_then_interrupt(store, record):
+        append(store, record)
+        if not interrupted:
+            interrupted.append(store.path)
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(RunStore, "append", append_then_interrupt)
+    root = tmp_path / "root"
+    with pytest.raises(KeyboardInterrupt):
+        run_suite(Suite.model_validate(SMALL), root, RUNTIME)
+    first, *others = read_manifest(done)
+    assert interrupted == [root / first.dir]
+    assert 1 <= len(read_records(root / first.dir)) < len(read_records(done / first.dir))
+    assert not any((root / c.dir).exists() for c in others), "a cell started after Ctrl-C"
+    monkeypatch.setattr(RunStore, "append", append)
+    outcomes = run_suite(Suite.model_validate(SMALL), root, RUNTIME)
+    assert [(o.done, o.total) for o in outcomes] == [(2, 2)] * 4
+    for cell in read_manifest(done):
+        assert views(root / cell.dir) == views(done / cell.dir), cell.dir
+
+
 def test_leaderboard_of_a_suite_shows_cells_not_started_as_unfinished(done, tmp_path, capsys):
     root = tmp_path / "root"
     root.mkdir()
@@ -238,19 +276,19 @@ def test_a_failing_cell_stops_the_suite_with_its_error_and_the_same_command_resu
     import deepphy.suite
 
     suite = Suite.model_validate({**SMALL, "envs": SMALL["envs"][:1]})
-    evaluate = deepphy.suite.evaluate
+    evaluate_cell = deepphy.suite.evaluate_cell
 
-    def failing(config, out, *args, **kw):
+    async def failing(config, out, *args, **kw):
         if config.format.value == "wm":
             raise RuntimeError("disk on fire")
-        return evaluate(config, out, *args, **kw)
+        return await evaluate_cell(config, out, *args, **kw)
 
-    monkeypatch.setattr(deepphy.suite, "evaluate", failing)
+    monkeypatch.setattr(deepphy.suite, "evaluate_cell", failing)
     stream = io.StringIO()
     with pytest.raises(RuntimeError, match="disk on fire"):
         run_suite(suite, tmp_path, RUNTIME.model_copy(update={"progress": True}), stream=stream)
     assert "cell mock/iphyre/wm failed: disk on fire" in stream.getvalue()
-    monkeypatch.setattr(deepphy.suite, "evaluate", evaluate)
+    monkeypatch.setattr(deepphy.suite, "evaluate_cell", evaluate_cell)
     assert [(o.done, o.total) for o in run_suite(suite, tmp_path, RUNTIME)] == [(2, 2), (2, 2)]
 
 
