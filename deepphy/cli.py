@@ -188,8 +188,8 @@ def build_parser(argv: list[str] | None = None):
     export.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
     export.add_argument("--out", required=True, help="dataset directory (Parquet, images, README.md)")
     export.add_argument("--layout", choices=["decisions", "chat"], default="decisions",
-                        help="decisions (default): every field of each decision; chat: each decision as the "
-                             "conversation the model saw plus its reply, images by path, for fine-tuning")
+                        help="decisions: every field of each decision; chat: each decision as the conversation "
+                             "the model saw plus its reply, images by path, for fine-tuning; default %(default)s")
 
     # --help is the solver's own once an environment is named: `solve --env phyre --help`
     solve = command("solve", add_help=False,

@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -335,6 +336,12 @@ def test_every_default_a_help_states_is_the_one_used():
             assert said[1] == str(used[where]), (where, action.help)
             assert action.default is None, where  # not argparse's: the value above applies
             checked.add(where)
+        if name == "run":  # "default: $<the variable>, else the shipped <file>"
+            from deepphy.models.config import DEFAULT_MODELS_FILE, MODELS_FILE_ENV
+
+            shipped = DEFAULT_MODELS_FILE.relative_to(Path(cli.__file__).parent.parent)
+            files_help = next(a.help for a in command._actions if "--models-file" in a.option_strings)
+            assert f"${MODELS_FILE_ENV}, else the shipped {shipped}" in files_help, files_help
         if name == "play":  # "default: the run directory's, else <RunConfig's>"
             env_help = next(a.help for a in command._actions if "--env" in a.option_strings)
             assert env_help.endswith(f"else {run_config['env'].default}"), env_help
