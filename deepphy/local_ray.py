@@ -36,6 +36,7 @@ from typing import Callable
 import psutil
 
 from deepphy.loopback import LOOPBACK_HOST
+from deepphy.reaper import GRACE_S
 
 START_TRIES = 3
 # Ray takes 127.0.0.1 as "no address given" and advertises the machine's primary interface;
@@ -260,7 +261,7 @@ def stop_leftovers(since: float) -> None:
     for p in family:
         with contextlib.suppress(psutil.Error):
             p.terminate()
-    _, alive = psutil.wait_procs(family, timeout=2)
+    _, alive = psutil.wait_procs(family, timeout=GRACE_S)
     for p in alive:  # the agents ignore SIGTERM
         with contextlib.suppress(psutil.Error):
             p.kill()
