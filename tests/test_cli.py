@@ -346,3 +346,17 @@ def test_every_default_a_help_states_is_the_one_used():
             env_help = next(a.help for a in command._actions if "--env" in a.option_strings)
             assert env_help.endswith(f"else {run_config['env'].default}"), env_help
     assert checked == set(used)  # every entry above is still stated
+
+
+def test_the_parsers_choices_are_the_codes():
+    """`--help` imports neither the prompt formats nor the export: their choices and default,
+    written in the parser, must be theirs."""
+    from deepphy.chat import PromptFormat
+    from deepphy.cli import build_parser
+    from deepphy.export import DEFAULT_LAYOUT, LAYOUTS
+
+    commands = build_parser()._subparsers._group_actions[0].choices
+    flag = {(name, a.option_strings[0]): a for name, c in commands.items() for a in c._actions if a.option_strings}
+    assert flag["run", "--format"].choices == [f.value for f in PromptFormat]
+    assert flag["export", "--layout"].choices == list(LAYOUTS)
+    assert flag["export", "--layout"].default == DEFAULT_LAYOUT
