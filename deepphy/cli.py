@@ -16,6 +16,14 @@ if TYPE_CHECKING:  # annotations only: both are imported where they are used
     from pathlib import Path
 
 DEFAULT_OUT = "runs/demo"  # `deepphy run`'s run directory when --out is not given
+SUITE_OUT = "runs/{suite}"  # `deepphy run --suite`'s root when --out is not given
+PLAY_OUT = "runs/human-{player}-{env}"  # `deepphy play`'s run directory when --out is not given
+SOLVER_COMMAND = "report"  # `deepphy solve --env E` with no solver arguments: its solvability report
+PLAY_RUNS = 1  # a person plays each task once (a new run directory; a model's runs: RunConfig's)
+# Fixed ports, so that a page's address stays the same from one start to the next; two of
+# them, so that the dashboard and `deepphy play` can serve at once.
+DASHBOARD_PORT = 8700
+PLAY_PORT = 8710
 
 
 class UserError(Exception):
@@ -39,6 +47,8 @@ def build_parser(argv: list[str] | None = None):
     """The command line's parser (argparse, imported here: not before a run's first line);
     given `argv`, with the arguments of its command only."""
     import argparse
+
+    from deepphy.loopback import LOOPBACK_HOST
 
     class Parser(argparse.ArgumentParser):
         def error(self, message: str) -> None:  # one line, not usage + error
@@ -87,7 +97,7 @@ def build_parser(argv: list[str] | None = None):
     run.add_argument("--runs", type=int, help="repetitions of every task; default 3")
     run.add_argument("--seed", type=int, help="seed of MOCK and of any sampling; default 0")
     run.add_argument("--out", help=f"run directory (with --suite: the suite root); default {DEFAULT_OUT} "
-                     "(with --suite: runs/<suite name>)")
+                     f"(with --suite: {SUITE_OUT.format(suite='<suite name>')})")
     run.add_argument("--tasks", help="task ids, separated by commas or spaces or lines, as `deepphy envs --tasks ENV` "
                                      "prints them (default: the evaluation set)")
     run.add_argument("--limit", type=int, help="only the first N tasks")
@@ -137,7 +147,7 @@ def build_parser(argv: list[str] | None = None):
                        help="a run directory a `deepphy run` is writing now (a local run included): joins its Ray "
                             "cluster and follows that run until it ends")
     watch.add_argument("--address", help="a Ray cluster's address (as given to `run --address`): every run on it")
-    watch.add_argument("--interval", type=float, default=2.0, help="seconds between snapshots; default 2")
+    watch.add_argument("--interval", type=float, default=2.0, help="seconds between snapshots; default %(default)g")
     watch.add_argument("--once", action="store_true", help="print one snapshot per live run and exit")
     watch.add_argument("--json", action="store_true", help="one JSON object per line (for dashboards)")
 
@@ -146,8 +156,8 @@ def build_parser(argv: list[str] | None = None):
                       help="run directories, or directories of run directories (new ones join the page as they "
                            "appear; so does a run started later into a directory given here)")
     dash.add_argument("--address", help="also show every run live on this Ray cluster")
-    dash.add_argument("--host", default="127.0.0.1", help="interface to listen on; default 127.0.0.1 (this machine only)")
-    dash.add_argument("--port", type=int, default=8700, help="port; default 8700, 0 picks a free one")
+    dash.add_argument("--host", default=LOOPBACK_HOST, help="interface to listen on; default %(default)s (this machine only)")
+    dash.add_argument("--port", type=int, default=DASHBOARD_PORT, help="port; default %(default)s, 0 picks a free one")
 
     play = command("play", help="play the tasks yourself in the browser, recorded as a run (model human:NAME)")
     play.add_argument("--env", help="environment (see `deepphy envs`); default: the one of the run directory given, "
@@ -155,16 +165,16 @@ def build_parser(argv: list[str] | None = None):
     play.add_argument("--player", help="your name (letters, digits, . _ -): the run's model is human:NAME; "
                       "default: your login name")
     play.add_argument("--out", help="run directory (an existing one resumes; its options are kept); default "
-                      "runs/human-<player>-<env>")
+                      f"{PLAY_OUT.format(player='<player>', env='<env>')}")
     play.add_argument("--tasks", help="task ids, separated by commas or spaces or lines (default: the evaluation set)")
     play.add_argument("--limit", type=int, help="only the first N tasks")
-    play.add_argument("--runs", type=int, help="repetitions of every task; default 1")
+    play.add_argument("--runs", type=int, help=f"repetitions of every task; default {PLAY_RUNS}")
     play.add_argument("--max-attempts", type=int, help="attempts per task (default: the protocol's, as models get)")
     play.add_argument("--seed", type=int, help="seed (recorded with the run); default 0")
     play.add_argument("--env-option", action="append", default=[], metavar="KEY=VALUE",
                       help="environment option, e.g. annotate=false (repeatable)")
-    play.add_argument("--host", default="127.0.0.1", help="interface to listen on; default 127.0.0.1 (this machine only)")
-    play.add_argument("--port", type=int, default=8710, help="port; default 8710, 0 picks a free one")
+    play.add_argument("--host", default=LOOPBACK_HOST, help="interface to listen on; default %(default)s (this machine only)")
+    play.add_argument("--port", type=int, default=PLAY_PORT, help="port; default %(default)s, 0 picks a free one")
 
     plot = command("plot", help="draw the paper's figures of one or more run directories (PNG and PDF)")
     plot.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
@@ -178,8 +188,8 @@ def build_parser(argv: list[str] | None = None):
     export.add_argument("run_dirs", nargs="+", metavar="RUN_DIR")
     export.add_argument("--out", required=True, help="dataset directory (Parquet, images, README.md)")
     export.add_argument("--layout", choices=["decisions", "chat"], default="decisions",
-                        help="decisions (default): every field of each decision; chat: each decision as the "
-                             "conversation the model saw plus its reply, images by path, for fine-tuning")
+                        help="decisions: every field of each decision; chat: each decision as the conversation "
+                             "the model saw plus its reply, images by path, for fine-tuning; default %(default)s")
 
     # --help is the solver's own once an environment is named: `solve --env phyre --help`
     solve = command("solve", add_help=False,
@@ -188,7 +198,7 @@ def build_parser(argv: list[str] | None = None):
                        help="this help; with --env, the help of that environment's solver (its commands and options)")
     solve.add_argument("--env", help="an environment with a solver (see `deepphy envs`)")
     solve.add_argument("solver_args", nargs=argparse.REMAINDER,
-                       help="the solver's own arguments; default `report`, the solvability report")
+                       help=f"the solver's own arguments; default `{SOLVER_COMMAND}`, the solvability report")
     solve.set_defaults(usage=solve)
 
     show = command("show", help="write the images a model would see for one task")
@@ -295,7 +305,7 @@ def cmd_run(args) -> int:
         if args.in_process:
             raise UserError("--in-process runs one run directory; a suite runs on Ray")
         return run_suite_command(args, runtime, view)
-    model, agent = "mock", None
+    model, agent = None, None  # neither given: RunConfig's model
     if args.agent:
         from deepphy.agent import load_agent
 
@@ -311,9 +321,9 @@ def cmd_run(args) -> int:
             raise UserError(f"several models need --suite (one run directory holds one model); --model "
                             f"{args.model[:60]} names {len(models)}")
         model = models[0]
-    flags = {"env": args.env, "format": args.format, "runs": args.runs, "seed": args.seed}
+    flags = {"env": args.env, "model": model, "format": args.format, "runs": args.runs, "seed": args.seed}
     config = _validated(lambda: RunConfig(
-        **{k: v for k, v in flags.items() if v is not None}, model=model, tasks=_task_ids(args.tasks),
+        **{k: v for k, v in flags.items() if v is not None}, tasks=_task_ids(args.tasks),
         limit=args.limit, max_attempts=args.max_attempts, env_options=_env_options(args.env_option or []),
         agent=agent,
     ))
@@ -354,7 +364,7 @@ def run_suite_command(args: argparse.Namespace, runtime, view=None) -> int:
         models = S.suite_models(suite, [m for m in args.model.split(",") if m] if args.model else None,
                                 runtime.models_file)
         warn_retired(models, runtime.models_file)
-        root = Path(args.out or f"runs/{suite.name}")
+        root = Path(args.out or SUITE_OUT.format(suite=suite.name))
         if args.dry_run:
             from deepphy.estimate import estimate, render, render_by_model
 
@@ -554,7 +564,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
     if solver is None:
         raise UserError(f"{args.env} has no solver (environments with one: {with_solver})")
     try:
-        return solver(["--help"] if args.help else args.solver_args or ["report"])
+        return solver(["--help"] if args.help else args.solver_args or [SOLVER_COMMAND])
     except SystemExit as e:  # argparse in the solver: --help (0), or a usage error it has printed (2)
         return e.code if isinstance(e.code, int) else 2
 
@@ -614,6 +624,18 @@ def _shown_path(path: str | None) -> str:
     return path if rel.startswith("..") else rel
 
 
+def _check_port(port: int) -> None:
+    """`--port` of the dashboard and of `deepphy play`."""
+    if not 0 <= port <= 65535:
+        raise UserError(f"--port must be 0..65535, got {port}")
+
+
+def _token_note(host: str, whoever_has_it: str) -> None:
+    """The line a page served beyond loopback adds to its URL (which carries its token)."""
+    print(f"note: listening on {host}: the page asks for the token in this URL; whoever has the URL "
+          f"{whoever_has_it}", file=sys.stderr)
+
+
 def cmd_dashboard(args: argparse.Namespace) -> int:
     import asyncio
     from pathlib import Path
@@ -625,8 +647,7 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
 
     if not args.run_dirs and not args.address:
         raise UserError("give run directories and/or --address of a Ray cluster")
-    if not 0 <= args.port <= 65535:
-        raise UserError(f"--port must be 0..65535, got {args.port}")
+    _check_port(args.port)
     paths, roots = [], []
     for arg in map(Path, args.run_dirs):
         if arg.exists() and not arg.is_dir():
@@ -649,8 +670,7 @@ def cmd_dashboard(args: argparse.Namespace) -> int:
     def announce(url: str) -> None:
         print(f"dashboard: {url}  (Ctrl-C to stop)", flush=True)
         if token:
-            print(f"note: listening on {args.host}: the page asks for the token in this URL; whoever has the URL "
-                  "can read these runs' prompts, replies and frames", file=sys.stderr)
+            _token_note(args.host, "can read these runs' prompts, replies and frames")
 
     try:
         asyncio.run(serve(Dashboard(sources, roots, address=args.address), args.host, args.port, announce, token))
@@ -677,8 +697,7 @@ def cmd_play(args: argparse.Namespace) -> int:
     from deepphy.play.session import PlaySession
     from deepphy.runs.store import CONFIG, read_config
 
-    if not 0 <= args.port <= 65535:
-        raise UserError(f"--port must be 0..65535, got {args.port}")
+    _check_port(args.port)
     asked = {"env": args.env, "runs": args.runs, "seed": args.seed, "limit": args.limit,
              "max_attempts": args.max_attempts, "tasks": _task_ids(args.tasks),
              "env_options": _env_options(args.env_option) or None}
@@ -692,20 +711,19 @@ def cmd_play(args: argparse.Namespace) -> int:
             config = RunConfig(**{**stored.model_dump(), **asked, "model": player_model(player)})
         else:
             player = args.player or getpass.getuser()
-            config = RunConfig(**{"runs": 1, **asked, "model": player_model(player)})  # a person plays once
+            config = RunConfig(**{"runs": PLAY_RUNS, **asked, "model": player_model(player)})
     except ValidationError as e:
         raise UserError(validation_message(e)) from None
     except ValueError as e:
         raise UserError(str(e)) from None
-    out = Path(args.out or f"runs/human-{player}-{config.env}")
+    out = Path(args.out or PLAY_OUT.format(player=player, env=config.env))
     session = PlaySession(config, out)
     token = webguard.token_for(args.host, TOKEN_ENV)  # beyond loopback, every request must carry it
 
     def announce(url: str) -> None:
         print(f"play: {url}  (open it in a browser; Ctrl-C stops, the same command resumes)", flush=True)
         if token:
-            print(f"note: listening on {args.host}: the page asks for the token in this URL; whoever has the URL "
-                  "can play in your name", file=sys.stderr)
+            _token_note(args.host, "can play in your name")
 
     def done(progress: dict) -> None:
         print(f"play: {progress['episodes_done']}/{progress['episodes_total']} episodes played, {progress['solved']} "

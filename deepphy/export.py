@@ -110,6 +110,7 @@ CHAT_FIELDS: list[tuple[str, pa.DataType, str]] = [
 ]
 CHAT_SCHEMA = pa.schema([(name, type_) for name, type_, _ in CHAT_FIELDS])
 LAYOUTS = {"decisions": (DATA_FILE, SCHEMA, FIELDS), "chat": (CHAT_FILE, CHAT_SCHEMA, CHAT_FIELDS)}
+DEFAULT_LAYOUT = "decisions"  # every field of each decision; "chat" is the fine-tuning view of the same
 
 
 @dataclass
@@ -218,7 +219,7 @@ def _prompt(run_dir: Path, task: str, run: int, digest: str, logged: dict[str, l
     return cache[digest]
 
 
-def rows_of(run_dir: Path, source: str, staging: Path, layout: str = "decisions") -> tuple[list[dict[str, Any]], int]:
+def rows_of(run_dir: Path, source: str, staging: Path, layout: str = DEFAULT_LAYOUT) -> tuple[list[dict[str, Any]], int]:
     """The rows of one run directory in `layout` (copying the images they name into
     `staging`) and the image count."""
     check_confined(run_dir)  # images/ or frames/ linked out of the run: refused (read, they would be empty)
@@ -288,7 +289,7 @@ def _source_names(run_dirs: Sequence[Path]) -> list[str]:
     return names
 
 
-def export(run_dirs: Sequence[str | Path], out: str | Path, layout: str = "decisions") -> ExportSummary:
+def export(run_dirs: Sequence[str | Path], out: str | Path, layout: str = DEFAULT_LAYOUT) -> ExportSummary:
     """Write the dataset to `out` (a new or empty directory, or an earlier export, which is
     replaced only once the new one is complete), in `layout` (see LAYOUTS)."""
     if layout not in LAYOUTS:
@@ -333,7 +334,7 @@ def _is_export(path: Path) -> bool:
     return card.is_file() and MARKER in card.read_text(errors="replace")
 
 
-def dataset_card(sources: list[tuple[str, Any, int]], rows: int, images: int, layout: str = "decisions") -> str:
+def dataset_card(sources: list[tuple[str, Any, int]], rows: int, images: int, layout: str = DEFAULT_LAYOUT) -> str:
     data_file, _, fields = LAYOUTS[layout]
     source_lines = "\n".join(
         f"| `{name}` | {c.env} | {c.model} | {c.format.value} | {c.runs} | {c.seed} | "

@@ -35,11 +35,14 @@ from typing import Callable
 
 import psutil
 
+from deepphy.loopback import LOOPBACK_HOST
+from deepphy.reaper import GRACE_S
+
 START_TRIES = 3
 # Ray takes 127.0.0.1 as "no address given" and advertises the machine's primary interface;
 # any other loopback address keeps the local cluster's traffic on loopback. macOS only
 # configures 127.0.0.1, so there we fall back to it.
-LOOPBACK_NODE_IP = "127.0.0.2" if sys.platform.startswith("linux") else "127.0.0.1"
+LOOPBACK_NODE_IP = "127.0.0.2" if sys.platform.startswith("linux") else LOOPBACK_HOST
 SESSION_WAIT_S = 120.0  # the GCS's port file (Ray's default wait is 30 s)
 WORKER_REGISTER_TIMEOUT_S = 300  # a worker process's start, imports included (Ray's default: 60 s)
 # Results up to this size travel inside the reply to their caller instead of through the object
@@ -95,7 +98,7 @@ def _ephemeral_start() -> int:
 
 
 def _bindable(port: int, host: str) -> bool:
-    for address in ("", host, "127.0.0.1"):  # every address ("": all of them), then the two Ray names
+    for address in ("", host, LOOPBACK_HOST):  # every address ("": all of them), then the two Ray names
         try:
             with socket.socket() as s:
                 s.bind((address, port))
@@ -115,9 +118,9 @@ def _kernel_ports(host: str, n: int) -> list[int]:
             held.append(s)
             port = s.getsockname()[1]
             try:
-                if host != "127.0.0.1":
+                if host != LOOPBACK_HOST:
                     with socket.socket() as t:
-                        t.bind(("127.0.0.1", port))
+                        t.bind((LOOPBACK_HOST, port))
             except OSError:
                 continue
             ports.append(port)
@@ -258,7 +261,7 @@ def stop_leftovers(since: float) -> None:
     for p in family:
         with contextlib.suppress(psutil.Error):
             p.terminate()
-    _, alive = psutil.wait_procs(family, timeout=2)
+    _, alive = psutil.wait_procs(family, timeout=GRACE_S)
     for p in alive:  # the agents ignore SIGTERM
         with contextlib.suppress(psutil.Error):
             p.kill()

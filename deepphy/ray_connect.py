@@ -15,6 +15,7 @@ from typing import Callable
 
 from deepphy import local_ray, reaper
 from deepphy.config import RuntimeOptions
+from deepphy.loopback import LOOPBACK_HOST
 from deepphy.ray_env import quiet_environment
 
 CONNECT_TIMEOUT_S = 10.0  # joining a cluster: a clear error instead of Ray's minutes of retries
@@ -121,7 +122,7 @@ def _refused(said: str) -> bool:
 
 def _probe(host: str, port: int, address: str, timeout_s: float) -> None:
     try:
-        with socket.create_connection((host or "127.0.0.1", port), timeout=min(timeout_s, 5.0)):
+        with socket.create_connection((host or LOOPBACK_HOST, port), timeout=min(timeout_s, 5.0)):
             pass
     except OSError as e:
         reason = e.strerror or type(e).__name__

@@ -11,23 +11,13 @@ answer in `deepphy play`) must come from the page itself as well (`from_page`).
 
 from __future__ import annotations
 
-import ipaddress
 import os
 import secrets
 from urllib.parse import urlsplit
 
 from aiohttp import web
 
-
-def is_loopback(host: str) -> bool:
-    """Whether a host name (as listened on, or as a request's Host or Origin names it) is this
-    machine's loopback: localhost, 127.0.0.0/8, ::1 (bracketed or not)."""
-    if host.lower() in ("localhost", "localhost."):
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
+from deepphy.loopback import is_loopback
 
 
 def token_for(listen_host: str, env_var: str) -> str | None:

@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -306,19 +307,56 @@ def test_the_start_view_repeats_while_the_run_holds_the_gil():
     assert len(repeats) >= 3 and repeats[-1].endswith(("2s", "3s")), during
 
 
-def test_the_helps_defaults_are_the_configs():
-    """A default is said once, in the config models; `deepphy run --help` repeats it for the
-    reader, and a flag not given takes the model's value, so the two must agree."""
-    from deepphy.cli import build_parser
+def test_every_default_a_help_states_is_the_one_used():
+    """A default is said once. argparse's own default reaches its help as `%(default)s`; a flag
+    left None takes a config model's or a CLI constant's, which its help repeats for the reader
+    (`--help` imports no pydantic), so the help's word must be that value: checked for every
+    `default X` in every command's help, so that a new one cannot drift either."""
+    from deepphy import cli
     from deepphy.config import RunConfig, RuntimeOptions
 
-    run = next(a for a in build_parser()._subparsers._group_actions[0].choices.values() if a.prog.endswith(" run"))
-    helps = {a.option_strings[0]: a.help for a in run._actions if a.option_strings}
-    for flag, default in [("--env", RunConfig.model_fields["env"].default),
-                          ("--format", RunConfig.model_fields["format"].default.value),
-                          ("--runs", RunConfig.model_fields["runs"].default),
-                          ("--seed", RunConfig.model_fields["seed"].default),
-                          ("--num-cpus", RuntimeOptions.model_fields["num_cpus"].default),
-                          ("--max-in-flight", RuntimeOptions.model_fields["max_in_flight"].default)]:
-        assert helps[flag].endswith(f"default {default}"), (flag, helps[flag])
-        assert run.get_default(flag.lstrip("-").replace("-", "_")) is None  # the model's default applies
+    run_config, runtime = RunConfig.model_fields, RuntimeOptions.model_fields
+    used = {("run", "--env"): run_config["env"].default, ("run", "--model"): run_config["model"].default,
+            ("run", "--format"): run_config["format"].default.value, ("run", "--runs"): run_config["runs"].default,
+            ("run", "--seed"): run_config["seed"].default, ("run", "--out"): cli.DEFAULT_OUT,
+            ("run", "--num-cpus"): runtime["num_cpus"].default,
+            ("run", "--max-in-flight"): runtime["max_in_flight"].default,
+            ("play", "--runs"): cli.PLAY_RUNS, ("play", "--seed"): run_config["seed"].default,
+            ("play", "--out"): cli.PLAY_OUT.format(player="<player>", env="<env>"),
+            ("solve", "solver_args"): f"`{cli.SOLVER_COMMAND}`"}
+    stated = re.compile(r"\bdefault ([^\s,;]+)")  # "default 3", not "default: <prose>"
+    checked = set()
+    for name, command in cli.build_parser()._subparsers._group_actions[0].choices.items():
+        for action in command._actions:
+            said = stated.search(action.help or "")
+            if said is None or said[1].startswith("%(default)"):  # none, or argparse's own
+                continue
+            where = (name, action.option_strings[0] if action.option_strings else action.dest)
+            assert where in used, f"{where}: its help states a default no test holds to its value: {action.help}"
+            assert said[1] == str(used[where]), (where, action.help)
+            assert action.default is None, where  # not argparse's: the value above applies
+            checked.add(where)
+        if name == "run":  # "default: $<the variable>, else the shipped <file>"
+            from deepphy.models.config import DEFAULT_MODELS_FILE, MODELS_FILE_ENV
+
+            shipped = DEFAULT_MODELS_FILE.relative_to(Path(cli.__file__).parent.parent)
+            files_help = next(a.help for a in command._actions if "--models-file" in a.option_strings)
+            assert f"${MODELS_FILE_ENV}, else the shipped {shipped}" in files_help, files_help
+        if name == "play":  # "default: the run directory's, else <RunConfig's>"
+            env_help = next(a.help for a in command._actions if "--env" in a.option_strings)
+            assert env_help.endswith(f"else {run_config['env'].default}"), env_help
+    assert checked == set(used)  # every entry above is still stated
+
+
+def test_the_parsers_choices_are_the_codes():
+    """`--help` imports neither the prompt formats nor the export: their choices and default,
+    written in the parser, must be theirs."""
+    from deepphy.chat import PromptFormat
+    from deepphy.cli import build_parser
+    from deepphy.export import DEFAULT_LAYOUT, LAYOUTS
+
+    commands = build_parser()._subparsers._group_actions[0].choices
+    flag = {(name, a.option_strings[0]): a for name, c in commands.items() for a in c._actions if a.option_strings}
+    assert flag["run", "--format"].choices == [f.value for f in PromptFormat]
+    assert flag["export", "--layout"].choices == list(LAYOUTS)
+    assert flag["export", "--layout"].default == DEFAULT_LAYOUT

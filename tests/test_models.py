@@ -15,7 +15,7 @@ from deepphy.models import (
 )
 from deepphy.models.config import MissingKey, ModelsFile
 from deepphy.agents import MockModel, make_agent
-from deepphy.testing.model_server import FAULT_KINDS, PROSE_REPLY, ServerConfig, ServerThread
+from deepphy.testing.model_server import DEFAULT_PORT, FAULT_KINDS, PROSE_REPLY, ServerConfig, ServerThread
 from deepphy.models.wire import decode_context, encode_context, parse_retry_after
 from deepphy.prompts import PromptFormat
 from models_support import iphyre_request, local_config
@@ -63,6 +63,32 @@ def test_shipped_models_file_loads_and_holds_no_keys():
         assert m.api_key_env is None or m.api_key_env.isupper()
     text = open(__import__("deepphy.models.config", fromlist=["x"]).DEFAULT_MODELS_FILE).read()
     assert "sk-" not in text
+
+
+def test_the_shipped_local_mock_entry_reaches_the_model_servers_default_port():
+    """`python -m deepphy.testing.model_server` with no flags is what `--model local-mock` calls:
+    the port is said in the server (DEFAULT_PORT) and in the models file, and must agree."""
+    from urllib.parse import urlsplit
+
+    from deepphy.loopback import LOOPBACK_HOST
+
+    url = urlsplit(load_models()["local-mock"].resolved_base_url)
+    assert (url.hostname, url.port) == (LOOPBACK_HOST, DEFAULT_PORT)
+
+
+@pytest.mark.parametrize("url, loopback", [
+    ("http://127.0.0.1:8765/v1", True), ("http://127.0.0.2/v1", True), ("http://[::1]:8000/v1", True),
+    ("http://LOCALHOST/v1", True), ("http://localhost./v1", True), ("http://10.0.0.1/v1", False),
+    ("https://api.openai.com/v1", False), ("http://127.0.0.1.example.com/v1", False), ("/v1", False),
+])
+def test_send_context_goes_to_loopback_only(url, loopback):
+    """One loopback test for the web pages' guard and the models file (deepphy.loopback)."""
+    make = lambda: ModelConfig(name="x", provider="openai", model="m", base_url=url, send_context=True)  # noqa: E731
+    if loopback:
+        assert make().send_context
+    else:
+        with pytest.raises(ValueError, match="loopback"):
+            make()
 
 
 def test_models_file_validation(tmp_path):

@@ -15,7 +15,6 @@ Who may read it: `deepphy.webguard` (a loopback Host without a token; the token 
 from __future__ import annotations
 
 import asyncio
-import json
 import logging
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -34,6 +33,7 @@ from deepphy.play import replay
 from deepphy.ray_connect import ensure_ray
 from deepphy.runs.discovery import dir_id, is_run_dir, live_snapshots, runs_in
 from deepphy.runs.store import IMAGES, RunDirError
+from deepphy.webserve import HEARTBEAT, HEARTBEAT_S, event_stream, listen, sse
 
 log = logging.getLogger(__name__)
 
@@ -44,7 +44,6 @@ LIVE_POLL_S = 2.0  # how often the Ray cluster is asked for its live runs
 SCAN_S = 1.0  # how often watched directories are looked through for new run directories
 BOARD_S = 1.0  # a directory's leaderboard is made again at most this often while its runs change
 MAX_CELL_DELTA = 5000  # beyond this many changed cells, pages re-fetch their grid page
-HEARTBEAT_S = 15.0
 CLIENT_BACKLOG = 200  # messages queued for a page that does not read; then it is dropped
 
 
@@ -335,9 +334,7 @@ class Dashboard:
         return web.FileResponse(path, headers={"Cache-Control": "max-age=3600"})  # frames never change
 
     async def events(self, request: web.Request) -> web.StreamResponse:
-        response = web.StreamResponse(headers={
-            "Content-Type": "text/event-stream", "Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
-        await response.prepare(request)
+        response = await event_stream(request)
         queue: asyncio.Queue = asyncio.Queue()
         self.clients.add(queue)
         try:
@@ -346,7 +343,7 @@ class Dashboard:
                 try:
                     data = await asyncio.wait_for(queue.get(), HEARTBEAT_S)
                 except asyncio.TimeoutError:
-                    data = b": heartbeat\n\n"
+                    data = HEARTBEAT
                 if data is None:
                     break
                 await response.write(data)
@@ -355,10 +352,6 @@ class Dashboard:
         finally:
             self.clients.discard(queue)
         return response
-
-
-def sse(event: str, payload: Any) -> bytes:
-    return f"event: {event}\ndata: {json.dumps(payload, separators=(',', ':'))}\n\n".encode()
 
 
 def live_only_view(ray_id: str, snap: dict[str, Any]) -> dict[str, Any]:
@@ -420,13 +413,8 @@ def make_app(dashboard: Dashboard, token: str | None = None) -> web.Application:
 
 async def serve(dashboard: Dashboard, host: str, port: int, announce, token: str | None = None) -> None:
     """Serve until cancelled; `announce(url)` is called once the socket listens."""
-    runner = web.AppRunner(make_app(dashboard, token), access_log=None)
-    await runner.setup()
-    site = web.TCPSite(runner, host, port)
-    await site.start()
-    bound = runner.addresses[0]
-    shown = f"[{bound[0]}]" if ":" in bound[0] else bound[0]
-    announce(f"http://{shown}:{bound[1]}/" + (f"?token={token}" if token else ""))
+    runner, url = await listen(make_app(dashboard, token), host, port, token)
+    announce(url)
     try:
         await asyncio.Event().wait()
     finally:

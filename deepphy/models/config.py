@@ -27,15 +27,14 @@ File shape::
 from __future__ import annotations
 
 import datetime
-import ipaddress
 import os
 import re
 from pathlib import Path
 from typing import Any, Literal
-from urllib.parse import urlparse
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from deepphy.loopback import is_loopback_url
 from deepphy.yamlfile import read_yaml_model
 from deepphy.models.limiter import RateLimits
 from deepphy.models.providers import UnknownProvider, provider_spec
@@ -260,16 +259,6 @@ class ModelsFile(_Strict):
         for name in self.groups[group]:
             out += self.members(name, (*_seen, group)) if name in self.groups else [name]
         return list(dict.fromkeys(out))
-
-
-def is_loopback_url(url: str) -> bool:
-    host = urlparse(url).hostname or ""
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 def models_file_path(models_file: str | Path | None = None) -> Path:

@@ -11,7 +11,6 @@ reached it, so another web site open in the same browser cannot answer for the p
 from __future__ import annotations
 
 import asyncio
-import json
 from pathlib import Path
 from typing import Any, Callable
 
@@ -23,9 +22,9 @@ from deepphy.play import replay
 from deepphy.play.human import MAX_ANSWER_CHARS, StaleDecision
 from deepphy.play.session import PlaySession
 from deepphy.runs.discovery import dir_id
+from deepphy.webserve import HEARTBEAT, HEARTBEAT_S, event_stream, listen, sse
 
 STATIC = Path(__file__).parent / "static"
-HEARTBEAT_S = 15.0
 TOKEN_COOKIE = "deepphy_play_token"
 TOKEN_ENV = "DEEPPHY_PLAY_TOKEN"  # a fixed token, instead of a new one at every start
 
@@ -51,9 +50,7 @@ class PlayServer:
 
     async def events(self, request: web.Request) -> web.StreamResponse:
         """The state, again whenever it changes (a burst of changes sends it once)."""
-        response = web.StreamResponse(headers={
-            "Content-Type": "text/event-stream", "Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
-        await response.prepare(request)
+        response = await event_stream(request)
         queue = self.desk.listen()
         try:
             await response.write(sse("state", self.state()))
@@ -61,7 +58,7 @@ class PlayServer:
                 try:
                     version = await asyncio.wait_for(queue.get(), HEARTBEAT_S)
                 except asyncio.TimeoutError:
-                    await response.write(b": heartbeat\n\n")
+                    await response.write(HEARTBEAT)
                     continue
                 await asyncio.sleep(0.02)  # a burst of changes: one state
                 while version is not None and not queue.empty():
@@ -137,10 +134,6 @@ class PlayServer:
                 "next decision)")
 
 
-def sse(event: str, payload: Any) -> bytes:
-    return f"event: {event}\ndata: {json.dumps(payload, separators=(',', ':'))}\n\n".encode()
-
-
 def _index(text: str) -> int:
     """A picture's index in a URL: a whole number from 0 (ValueError otherwise)."""
     if not text.isdigit():
@@ -174,13 +167,8 @@ async def serve(session: PlaySession, host: str, port: int, announce: Callable[[
     `announce(url)` is called once the socket listens, before the environment loads (the URL
     carries `token`, required of every request beyond loopback); `done(progress)` once every
     episode is played."""
-    runner = web.AppRunner(make_app(PlayServer(session, token)), access_log=None)
-    await runner.setup()
-    site = web.TCPSite(runner, host, port)
-    await site.start()
-    bound = runner.addresses[0]
-    shown = f"[{bound[0]}]" if ":" in bound[0] else bound[0]
-    announce(f"http://{shown}:{bound[1]}/" + (f"?token={token}" if token else ""))
+    runner, url = await listen(make_app(PlayServer(session, token)), host, port, token)
+    announce(url)
     try:
         await session.play()
         done(session.state()["progress"])

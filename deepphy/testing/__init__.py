@@ -2,5 +2,5 @@
 
 - `model_server`: a local HTTP server that speaks the OpenAI, Anthropic and Gemini wire
   formats and answers with the MOCK policy, with latency and seeded fault injection
-  (`python -m deepphy.testing.model_server --port 8765`).
+  (`python -m deepphy.testing.model_server`).
 """

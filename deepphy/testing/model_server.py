@@ -1,6 +1,6 @@
 """A local model server with real provider wire formats that answers with the MOCK policy.
 
-    python -m deepphy.testing.model_server --port 8765 [--latency 0.5] [--fault-rate 0.2] [--seed 0]
+    python -m deepphy.testing.model_server [--port PORT] [--latency 0.5] [--fault-rate 0.2] [--seed 0]
 
 Routes (real request/response JSON, status codes and headers):
 - POST /v1/chat/completions                    OpenAI Chat Completions (no streaming)
@@ -33,8 +33,7 @@ RetryInfo detail in the body), `500`,
 `hang` (no answer for --hang seconds, past any sane client timeout), `malformed` (200
 with truncated JSON), `empty` (200 with no choices / content / candidates), `prose` (200
 with a reply that contains no action); and, only when named, `drip` (a 200 whose body
-arrives one byte every --drip seconds). With `--max-images` / `--max-context-tokens` it
-refuses a prompt past a vLLM deployment's limits with vLLM's own 400 (OpenAI format).
+arrives one byte every --drip seconds).
 Whether a request is faulted, and how, depends
 only on the seed, the request (body + context header) and how many times that same
 request arrived before, so a run's faults do not depend on timing or arrival order; a
@@ -66,9 +65,13 @@ from typing import Any
 from aiohttp import web
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from deepphy.loopback import LOOPBACK_HOST
 from deepphy.models.wire import ANTHROPIC_NO_SAMPLING_FROM, CONTEXT_HEADER, decode_context, image_tokens, text_tokens
 from deepphy.seeding import seeded_rng
 
+# Where `python -m deepphy.testing.model_server` listens: the shipped models file's `local-mock`
+# entry (deepphy/models/models.yaml) points here; a test holds the two equal.
+DEFAULT_PORT = 8765
 FAULT_KINDS = ("429", "500", "hang", "malformed", "empty", "prose")  # the default kinds
 SLOW_FAULTS = ("drip",)  # only when named: a drip ties a request up for as long as the client lets it
 PROSE_REPLY = (
@@ -521,7 +524,7 @@ class MockServer:
         self.max_in_flight = 0
         self.bodies: deque[dict] = deque(maxlen=max(self.config.record_bodies, 1))
 
-    async def start(self, host: str = "127.0.0.1", port: int = 0) -> int:
+    async def start(self, host: str = LOOPBACK_HOST, port: int = 0) -> int:
         self._runner = web.AppRunner(self.app, handler_cancellation=True, max_field_size=1024**2, access_log=None)
         await self._runner.setup()
         site = web.TCPSite(self._runner, host, port, backlog=1024)
@@ -687,7 +690,7 @@ class MockServer:
 class ServerThread:
     """A MockServer on its own event loop in a daemon thread (for tests and scripts)."""
 
-    def __init__(self, config: ServerConfig | None = None, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(self, config: ServerConfig | None = None, host: str = LOOPBACK_HOST, port: int = 0) -> None:
         self.server = MockServer(config)
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, daemon=True, name="deepphy-model-server")
@@ -771,20 +774,27 @@ def _end_with_parent() -> None:
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="python -m deepphy.testing.model_server", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--host", default="127.0.0.1")
-    ap.add_argument("--port", type=int, default=8765, help="0: any free port (printed)")
-    ap.add_argument("--latency", type=float, default=0.0, help="seconds before each answer")
-    ap.add_argument("--latency-jitter", type=float, default=0.0, help="extra uniform 0..J seconds")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--fault-rate", type=float, default=0.0)
+    served, faulted = ServerConfig.model_fields, Faults.model_fields  # the flags' defaults are the models' (said once)
+    ap.add_argument("--host", default=LOOPBACK_HOST, help="interface to listen on; default %(default)s")
+    ap.add_argument("--port", type=int, default=DEFAULT_PORT, help="default %(default)s; 0: any free port (printed)")
+    ap.add_argument("--latency", type=float, default=served["latency_s"].default, help="seconds before each answer")
+    ap.add_argument("--latency-jitter", type=float, default=served["latency_jitter_s"].default,
+                    help="extra uniform 0..J seconds")
+    ap.add_argument("--seed", type=int, default=served["seed"].default)
+    ap.add_argument("--fault-rate", type=float, default=faulted["rate"].default)
     ap.add_argument("--faults", default=",".join(FAULT_KINDS),
                     help=f"comma list of {','.join(FAULT_KINDS + SLOW_FAULTS)}")
-    ap.add_argument("--retry-after", type=float, default=1.0, help="Retry-After seconds sent with 429")
-    ap.add_argument("--hang", type=float, default=3600.0, help="seconds a 'hang' fault holds the request")
-    ap.add_argument("--drip", type=float, default=1.0, help="seconds between the bytes of a 'drip' fault's body")
-    ap.add_argument("--first-tries", type=int, default=0, help="fault the first N arrivals of every distinct request")
+    ap.add_argument("--retry-after", type=float, default=faulted["retry_after_s"].default,
+                    help="Retry-After seconds sent with 429")
+    ap.add_argument("--hang", type=float, default=faulted["hang_s"].default,
+                    help="seconds a 'hang' fault holds the request")
+    ap.add_argument("--drip", type=float, default=faulted["drip_s"].default,
+                    help="seconds between the bytes of a 'drip' fault's body")
+    ap.add_argument("--first-tries", type=int, default=faulted["first_tries"].default,
+                    help="fault the first N arrivals of every distinct request")
     ap.add_argument("--require-key-env", default=None, help="require the key held in this env var")
-    ap.add_argument("--record-bodies", type=int, default=0, help="keep the last N request bodies (GET /admin/bodies)")
+    ap.add_argument("--record-bodies", type=int, default=served["record_bodies"].default,
+                    help="keep the last N request bodies (GET /admin/bodies)")
     ap.add_argument("--log", default=None, help="append one JSON line per request (arrival time, fault, status)")
     ap.add_argument("--limit-mm-per-prompt", type=int, default=None, metavar="N",
                     help="refuse Chat Completions requests with more than N images, as vLLM does")

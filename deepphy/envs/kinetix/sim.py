@@ -27,7 +27,7 @@ Cost control:
   level size, compiled for the one shape `BATCH`; the three sizes have one StaticEnvParams
   each, and all levels share their EnvParams. The persistent JAX compilation cache lives
   under `<cache root>/kinetix/jax/` and is shared by workers.
-- Cache root: `$DEEPPHY_CACHE_DIR` or `~/.cache/deepphy`.
+- Cache root: the per-machine cache (deepphy.cache).
 """
 
 from __future__ import annotations

@@ -11,8 +11,8 @@ First use (under a file lock, so concurrent workers fetch and decode once):
    a downloaded wheel is deleted;
 3. the tasks of tier BALL (PHYRE-B: templates 00000-00024 x 100 tasks) are decoded with
    our own Thrift reader and cached as JSON next to it (`ball_tasks.v<N>.json`).
-Every file appears by atomic rename. `<cache>` is `$DEEPPHY_CACHE_DIR` or
-`~/.cache/deepphy`. Later processes only read the JSON (~0.1 s); a task becomes a model
+Every file appears by atomic rename. `<cache>` is the per-machine cache (deepphy.cache).
+Later processes only read the JSON (~0.1 s); a task becomes a model
 when first asked for.
 """
 

@@ -48,7 +48,7 @@ Decisions (documented in docs/environments.md):
   metres, the shot count, the target circled with the cue's line to it, and the earlier
   shots of the game.
 - Numba: pooltool compiles its kernels on the first shot (~25-30 s of CPU). We point
-  NUMBA_CACHE_DIR at $DEEPPHY_CACHE_DIR/numba (default ~/.cache/deepphy/numba) before
+  NUMBA_CACHE_DIR at `<cache root>/numba` (the per-machine cache, deepphy.cache) before
   numba is imported, so every process and worker on a machine shares one cache, and the
   first step of each process simulates a warm-up break under a file lock (`warm_up`), so
   concurrent workers on a cold machine compile once, not once each.
