@@ -49,6 +49,7 @@ def build_parser(argv: list[str] | None = None):
     import argparse
 
     from deepphy.loopback import LOOPBACK_HOST
+    from deepphy.start_view import LOG_S
 
     class Parser(argparse.ArgumentParser):
         def error(self, message: str) -> None:  # one line, not usage + error
@@ -116,7 +117,8 @@ def build_parser(argv: list[str] | None = None):
     run.add_argument("--max-in-flight", type=int, help="episodes in progress at once; default 256")
     run.add_argument("--no-progress", action="store_true", help="no live progress line")
     run.add_argument("--cell-lines", action="store_true",
-                     help="with --suite: a progress line per running cell too (every 10 s), below the suite's")
+                     help=f"with --suite: a progress line per running cell too (every {LOG_S:g} s), below the "
+                          "suite's")
     run.add_argument("--dry-run", action="store_true",
                      help="print what the run would ask of its model (requests, images, input tokens measured on the "
                           "rendered prompts of its first tasks, cost, time at the rate limit) without calling it or "

@@ -347,7 +347,7 @@ def dataset_card(sources: list[tuple[str, Any, int]], rows: int, images: int, la
     key_frames = "" if layout == "chat" else f""" Key frames (what happened after a
 decision) are `{IMAGES}/<source>/<task>/<file>.png`, referenced from `key_frames`."""
     if layout == "chat":
-        layout_text = f"""Layout `chat` (`deepphy export --layout chat`), for supervised fine-tuning: each row's
+        layout_text = """Layout `chat` (`deepphy export --layout chat`), for supervised fine-tuning: each row's
 `messages` is the conversation as the model was sent it (the stored
 prompt: system and user messages, text and images in order), followed by the model's
 reply as an `assistant` message. An image part names its file in `image` (a path

@@ -29,9 +29,10 @@ from deepphy.runs.records import summaries_json
 from deepphy.runs.status import RunStatus, remove_status, write_status
 from deepphy.runs.store import CONFIG, RunStore, check_records, read_records
 from deepphy.scheduler import AgentWorkerModel, EnvPool, LocalAgentModel, Scheduler, WorkerModel, ray_errors
-from deepphy.start_view import StartView
+from deepphy.start_view import LOG_S, StartView
 
 RAY_TIMEOUT_S = 60.0
+CLOSE_TIMEOUT_S = 10.0  # for model workers to close their connections (an agent: what its setup took); then killed
 
 
 @dataclass
@@ -255,7 +256,7 @@ class _Run:
         finally:
             # A model worker closes its connections itself, or its client complains as it dies.
             try:
-                async with asyncio.timeout(10):
+                async with asyncio.timeout(CLOSE_TIMEOUT_S):
                     await asyncio.gather(*(worker.close.remote() for worker in model_actors))
             except Exception:  # noqa: BLE001 - a lost worker has nothing to close
                 pass
@@ -424,14 +425,14 @@ async def _metrics_started(ready, scheduler, runtime: RuntimeOptions) -> None:
         scheduler.stop_requested = True
 
 
-PROGRESS_TTY_S, PROGRESS_LOG_S = 0.5, 10.0  # the progress line: on a terminal, in a log
+PROGRESS_TTY_S = 0.5  # the progress line on a terminal (in a log: start_view.LOG_S)
 SNAPSHOT_WAIT_S = 2.0  # for the figures of a progress line; past it, the line goes without them
 
 
 async def _progress(scheduler, metrics, phase: list[str], stream, without_figures: Callable[[str], str]) -> None:
     """The progress line: at once, then every PROGRESS_TTY_S on a terminal (in place) and
-    every PROGRESS_LOG_S in a log, never waiting long for the figures."""
-    every = PROGRESS_TTY_S if stream.isatty() else PROGRESS_LOG_S
+    every LOG_S in a log, never waiting long for the figures."""
+    every = PROGRESS_TTY_S if stream.isatty() else LOG_S
     while True:
         shown = time.monotonic()
         await _print_snapshot(scheduler, metrics, phase[0], stream, without_figures, final=False)

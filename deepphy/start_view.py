@@ -14,7 +14,9 @@ from __future__ import annotations
 import sys
 import time
 
-TTY_S, LOG_S = 1.0, 10.0  # seconds between repeats: on a terminal, in a log
+# Seconds between a view's lines on a terminal and in a log (a file, CI): the start view's
+# repeats; LOG_S for every view's lines in a log (a run's, a suite's, its cells').
+TTY_S, LOG_S = 1.0, 10.0
 
 # The helper (`python -I -S -c`): repeats the newest phase every INTERVAL seconds to its stdout.
 # A message is one line "SINCE PHASE" (SINCE: time.monotonic() when the phase began, the same

@@ -45,9 +45,10 @@ from deepphy.metrics.live import _duration, _rate, format_progress
 from deepphy.plan import plan
 from deepphy.ray_connect import disconnect, ensure_ray
 from deepphy.collector import frozen_heap
-from deepphy.runner import RunOutcome, Shared, evaluate_cell, make_env_workers
+from deepphy.runner import CLOSE_TIMEOUT_S, RunOutcome, Shared, evaluate_cell, make_env_workers
 from deepphy.scheduler import EnvPool
-from deepphy.runs.discovery import actor_name, is_run_dir, new_run_id
+from deepphy.start_view import LOG_S, TTY_S
+from deepphy.runs.discovery import SNAPSHOT_TIMEOUT_S, actor_name, is_run_dir, new_run_id
 from deepphy.runs.manifest import MANIFEST, Cell, read_manifest, write_manifest
 from deepphy.runs.store import RunStore, read_records
 
@@ -193,8 +194,6 @@ SETTINGS_AT_ONCE = 2  # environment settings whose workers live at once: one sim
 # cells wait on their models or compile; each worker asks 1/SETTINGS_AT_ONCE CPU, so together they ask the
 # CPUs one run's workers would (a third setting would add processes and memory for little more overlap)
 CELLS_AT_ONCE = 8  # cells running at once: each has a model worker process and its own episodes in flight
-VIEW_TTY_S, VIEW_LOG_S = 1.0, 10.0  # the suite's progress line: on a terminal, in a log
-VIEW_WAIT_S = 5.0  # for the figures of a progress line; past it, the line waits for the next turn
 
 
 @dataclass
@@ -321,7 +320,7 @@ class Interleaved:
             try:
                 while self.error is None and len(self.running) < CELLS_AT_ONCE and (cell := self._next()):
                     self.running[asyncio.ensure_future(self._evaluate(cell))] = cell
-                done, _ = await asyncio.wait(self.running, timeout=VIEW_TTY_S if self.tty else VIEW_LOG_S,
+                done, _ = await asyncio.wait(self.running, timeout=TTY_S if self.tty else LOG_S,
                                              return_when=asyncio.FIRST_COMPLETED)
                 for task in done:
                     cell = self.running.pop(task)
@@ -365,7 +364,7 @@ class Interleaved:
         if not workers:
             return
         try:  # an agent's close (its endpoints' connections, what its setup took), then the actor
-            ray.wait([w.close.remote() for w in workers], num_returns=len(workers), timeout=10)
+            ray.wait([w.close.remote() for w in workers], num_returns=len(workers), timeout=CLOSE_TIMEOUT_S)
         except Exception:  # noqa: BLE001 - a lost worker has nothing to close
             pass
         for worker in workers:
@@ -438,13 +437,13 @@ class Interleaved:
 
     async def _view(self) -> None:
         now = time.monotonic()
-        if not self.show or now - self.last_view < (VIEW_TTY_S if self.tty else VIEW_LOG_S) - 0.05:
+        if not self.show or now - self.last_view < (TTY_S if self.tty else LOG_S) - 0.05:
             return
         self.last_view = now
         watched = dict(self.watched)
         snaps: dict[str, dict] = {}
         try:
-            async with asyncio.timeout(VIEW_WAIT_S):
+            async with asyncio.timeout(SNAPSHOT_TIMEOUT_S):
                 got = await asyncio.gather(*(m.snapshot.remote() for m, _ in watched.values()))
                 snaps = dict(zip(watched, got))
                 limits = dict(zip(self.limiters, await asyncio.gather(*(lim.stats.remote()
@@ -456,7 +455,7 @@ class Interleaved:
             self.new_attempts[cell] = snap["new_attempts"]
         line = suite_line(self.name, self.wanted, self.progress, len(self.running), sum(self.new_attempts.values()),
                           now - self.began, self.episodes_at_start, limits)
-        if self.cell_lines and now - self.last_cell_lines >= VIEW_LOG_S - 0.05:
+        if self.cell_lines and now - self.last_cell_lines >= LOG_S - 0.05:
             self.last_cell_lines = now
             for cell, snap in snaps.items():
                 self.stream.write(("\r\x1b[2K" if self.tty else "") + f"  {cell}: {format_progress(snap)}\n")

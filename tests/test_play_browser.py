@@ -567,7 +567,7 @@ def test_dashboard_shows_a_persons_run_beside_a_models_and_replays_both(ray_clus
             page.select_option("#run-select", run_id_of(page, run_dir))
             task = read_records(run_dir)[0].task
             page.click(f'#grid .cell[data-task="{task}"][data-r="0"]')
-            page.wait_for_selector(f'#episode details.attempt[data-attempt="1"] a.replay')
+            page.wait_for_selector('#episode details.attempt[data-attempt="1"] a.replay')
             page.eval_on_selector('#episode details.attempt[data-attempt="1"]', "d => { d.open = true; }")
             line = page.text_content('#episode details.attempt[data-attempt="1"] .attempt-body > .field')
             assert ("human time to decide" in line) == (name == "person") and ("model" in line) == (name == "model")

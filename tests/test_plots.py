@@ -162,7 +162,7 @@ def test_success_against_attempts_is_the_reports_att_k(dirs):
     for series, r, line in zip(drawn["series"], reports, ax.get_lines()):
         assert series["success"] == r.overall.mean.success_at and series["attempts"] == list(range(1, 11))
         assert list(line.get_ydata()) == pytest.approx([100 * v for v in series["success"]])
-        assert series["n"] == f"6x2"
+        assert series["n"] == "6x2"
     assert [t.get_text() for t in ax.figure.legends[0].get_texts()] == ["mock VLA (n=6x2)", "mock WM (n=6x2)"]
 
 

@@ -91,7 +91,6 @@ def test_a_silent_endpoint_holds_an_episode_minutes_and_the_progress_line_says_s
 
     config = RunConfig(env="iphyre", model="slow", runs=1, tasks=["support"])
     the_plan = plan(config)
-    spec, tasks, k_max = the_plan.spec, the_plan.tasks, the_plan.k_max
     env = LocalEnv(the_plan.make_env())  # in this loop: no thread for the clock to outrun
     with virtual_time() as loop:
         server = MockServer(ServerConfig(faults={"rate": 1.0, "kinds": ["hang"], "hang_s": 3600}))
