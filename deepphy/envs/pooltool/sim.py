@@ -87,8 +87,25 @@ def warm_up() -> None:
 
 def _break(pt) -> None:
     system = build_system(0)
-    system.strike(V0=SPEEDS["High"], phi=pt.aim.at_ball(system, "1"), theta=0.0, a=0.0, b=0.0)
+    system.strike(V0=SPEEDS["High"], phi=aim_at(system, "1"), theta=0.0, a=0.0, b=0.0)
     pt.simulate(system, engine=_engine(), inplace=True, max_events=MAX_EVENTS)
+
+
+_UNIT_X = np.array([1.0, 0.0])  # the x axis, from which pooltool measures the cue's angle phi
+
+
+def aim_at(system, ball_id: str) -> float:
+    """The cue angle phi (degrees) of a full-ball hit on `ball_id`: pooltool's
+    `aim.at_ball(system, ball_id)`, to the bit, but with `ptmath.angle`'s reference axis
+    passed rather than left to its default. That default is a numpy array, which numba keys
+    by its id(): in every new process the signature was new, so each one compiled `angle`
+    again and added a cache entry no other process could use. Passed, it loads from cache.
+    """
+    pt = _pt()
+    cue = system.balls[system.cue.cue_ball_id].state.rvw[0]
+    target = system.balls[ball_id].state.rvw[0]
+    direction = pt.ptmath.angle(pt.ptmath.unit_vector(target - cue), _UNIT_X)
+    return direction * 180 / np.pi
 
 
 # -- racks ----------------------------------------------------------------------------
