@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import fcntl
 import functools
+import hashlib
 import math
 import os
 import sys
@@ -64,15 +65,18 @@ def warm_up() -> None:
     On a cold cache, under an exclusive file lock in the cache directory: when several
     workers start on a cold machine, one compiles and writes the cache while the others
     wait and then load it, so the compile cost is paid once per machine. A marker left by
-    that first warm-up (named by pooltool's and numba's versions) says the cache is filled:
-    from then on the workers load the kernels at once rather than one after another (about
-    a second each). Later shots that reach a kernel the break did not use compile it once
-    and add it to the same cache.
+    that first warm-up says the cache is filled: from then on the workers load the kernels
+    at once rather than one after another (about a second each). The marker is named by
+    pooltool's and numba's versions and by where pooltool is installed, as numba files its
+    kernels by their source's directory: each virtual environment fills its own. Later
+    shots that reach a kernel the break did not use compile it once and add it to the
+    same cache.
     """
     pt = _pt()
     cache = configure_numba_cache()
     cache.mkdir(parents=True, exist_ok=True)
-    filled = cache / f"pooltool-warm-up-{version('pooltool-billiards')}-{version('numba')}.done"
+    where = hashlib.sha1(os.path.dirname(os.path.abspath(pt.__file__)).encode()).hexdigest()[:12]
+    filled = cache / f"pooltool-warm-up-{version('pooltool-billiards')}-{version('numba')}-{where}.done"
     if filled.exists():
         _break(pt)
         return
