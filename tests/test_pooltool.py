@@ -312,6 +312,36 @@ def test_same_rack_and_actions_identical_across_processes(env, home):
     assert outs[0] == outs[1] == json.loads(json.dumps(here))
 
 
+def test_a_fresh_process_after_the_warm_up_compiles_nothing(env, home):
+    """Issue 40: once the kernels a shot uses are in numba's cache, a new process (a Ray
+    worker) loads them all: its warm-up and a shot write no cache entry (an entry written
+    is a kernel compiled again, e.g. for a signature that differs from process to process)."""
+    from deepphy.envs.pooltool.sim import configure_numba_cache, warm_up
+
+    warm_up()
+    play(env, 0, FIFTEEN[:1])  # whatever these need is compiled and cached by now
+    cache = configure_numba_cache()
+
+    def entries() -> set[tuple[str, int]]:
+        return {(str(p.relative_to(cache)), p.stat().st_mtime_ns) for p in cache.rglob("*.nb[ic]")}
+
+    before = entries()
+    script = textwrap.dedent(
+        f"""
+        import sys
+        sys.path.insert(0, {str(REPO / 'tests')!r})
+        from test_pooltool import PooltoolEnv, NINEBALL, FIFTEEN, play
+        from deepphy.envs.pooltool.sim import warm_up
+        warm_up()
+        play(PooltoolEnv(NINEBALL), 0, FIFTEEN[:1])
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", script], cwd=REPO, env=dict(os.environ, HOME=str(home)),
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert sorted(entries() - before) == []
+
+
 @pytest.mark.slow
 def test_random_games_keep_the_table_consistent(env):
     """MOCK-like games on 10 racks: after every shot no two balls overlap on the table."""

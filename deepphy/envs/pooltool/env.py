@@ -1,7 +1,7 @@
 """Pooltool: single-player nine-ball on the real `pooltool-billiards` package.
 
 Each shot the cue is aimed automatically at the centre of the lowest-numbered ball on
-the table (a full-ball hit, `pooltool.ai.aim.at_ball`, no cut); the agent chooses only
+the table (a full-ball hit, as `pooltool.ai.aim.at_ball`, no cut); the agent chooses only
 the cue speed and where the tip strikes the cue ball. The physics and the nine-ball rules
 are pooltool's own (`pt.simulate` with an explicit engine, pooltool's NINEBALL ruleset);
 the rack, the ball-in-hand placement and the rendering are ours.
@@ -77,6 +77,7 @@ from deepphy.envs.pooltool.sim import (
     _on_table,
     _place,
     _pt,
+    aim_at,
     build_system,
     warm_up,
 )
@@ -156,7 +157,7 @@ class PooltoolEnv(Environment):
         target = _on_table(system)[0]
         a, b = action.offsets
         system.reset_history()
-        system.strike(V0=action.velocity, phi=pt.aim.at_ball(system, target), theta=0.0, a=a, b=b)
+        system.strike(V0=action.velocity, phi=aim_at(system, target), theta=0.0, a=a, b=b)
         pt.simulate(system, engine=_engine(), inplace=True, max_events=MAX_EVENTS)
         pictures = _film(system) if film else []
         self._shots += 1

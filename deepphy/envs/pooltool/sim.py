@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import fcntl
 import functools
+import hashlib
 import math
 import os
 import sys
@@ -64,15 +65,18 @@ def warm_up() -> None:
     On a cold cache, under an exclusive file lock in the cache directory: when several
     workers start on a cold machine, one compiles and writes the cache while the others
     wait and then load it, so the compile cost is paid once per machine. A marker left by
-    that first warm-up (named by pooltool's and numba's versions) says the cache is filled:
-    from then on the workers load the kernels at once rather than one after another (about
-    a second each). Later shots that reach a kernel the break did not use compile it once
-    and add it to the same cache.
+    that first warm-up says the cache is filled: from then on the workers load the kernels
+    at once rather than one after another (about a second each). The marker is named by
+    pooltool's and numba's versions and by where pooltool is installed, as numba files its
+    kernels by their source's directory: each virtual environment fills its own. Later
+    shots that reach a kernel the break did not use compile it once and add it to the
+    same cache.
     """
     pt = _pt()
     cache = configure_numba_cache()
     cache.mkdir(parents=True, exist_ok=True)
-    filled = cache / f"pooltool-warm-up-{version('pooltool-billiards')}-{version('numba')}.done"
+    where = hashlib.sha1(os.path.dirname(os.path.abspath(pt.__file__)).encode()).hexdigest()[:12]
+    filled = cache / f"pooltool-warm-up-{version('pooltool-billiards')}-{version('numba')}-{where}.done"
     if filled.exists():
         _break(pt)
         return
@@ -87,8 +91,25 @@ def warm_up() -> None:
 
 def _break(pt) -> None:
     system = build_system(0)
-    system.strike(V0=SPEEDS["High"], phi=pt.aim.at_ball(system, "1"), theta=0.0, a=0.0, b=0.0)
+    system.strike(V0=SPEEDS["High"], phi=aim_at(system, "1"), theta=0.0, a=0.0, b=0.0)
     pt.simulate(system, engine=_engine(), inplace=True, max_events=MAX_EVENTS)
+
+
+_UNIT_X = np.array([1.0, 0.0])  # the x axis, from which pooltool measures the cue's angle phi
+
+
+def aim_at(system, ball_id: str) -> float:
+    """The cue angle phi (degrees) of a full-ball hit on `ball_id`: pooltool's
+    `aim.at_ball(system, ball_id)`, to the bit, but with `ptmath.angle`'s reference axis
+    passed rather than left to its default. That default is a numpy array, which numba keys
+    by its id(): in every new process the signature was new, so each one compiled `angle`
+    again and added a cache entry no other process could use. Passed, it loads from cache.
+    """
+    pt = _pt()
+    cue = system.balls[system.cue.cue_ball_id].state.rvw[0]
+    target = system.balls[ball_id].state.rvw[0]
+    direction = pt.ptmath.angle(pt.ptmath.unit_vector(target - cue), _UNIT_X)
+    return direction * 180 / np.pi
 
 
 # -- racks ----------------------------------------------------------------------------
