@@ -213,17 +213,17 @@ def test_ctrl_c_stops_the_suite_after_its_attempts_in_flight_and_the_same_comman
             signal.raise_signal(signal.SIGINT)
 
     monkeypatch.setattr(RunStore, "append", append_then_interrupt)
-    root = tmp_path / "root"
+    root, suite = tmp_path / "root", Suite.model_validate({**SMALL, "envs": SMALL["envs"][:1]})  # I-PHYRE's 2 cells
     with pytest.raises(KeyboardInterrupt):
-        run_suite(Suite.model_validate(SMALL), root, RUNTIME)
-    first, *others = read_manifest(done)
+        run_suite(suite, root, RUNTIME)
+    first, *others = read_manifest(done)[:2]
     assert interrupted == [root / first.dir]
     assert 1 <= len(read_records(root / first.dir)) < len(read_records(done / first.dir))
     assert not any((root / c.dir).exists() for c in others), "a cell started after Ctrl-C"
     monkeypatch.setattr(RunStore, "append", append)
-    outcomes = run_suite(Suite.model_validate(SMALL), root, RUNTIME)
-    assert [(o.done, o.total) for o in outcomes] == [(2, 2)] * 4
-    for cell in read_manifest(done):
+    outcomes = run_suite(suite, root, RUNTIME)
+    assert [(o.done, o.total) for o in outcomes] == [(2, 2)] * 2
+    for cell in [first, *others]:
         assert views(root / cell.dir) == views(done / cell.dir), cell.dir
 
 
