@@ -263,11 +263,11 @@ def _():
 
 
 @level("s1_l07", "Storehouse II", "RRRR", [(40, 0.6)],
-       "explosions: two small pigs in a two-storey wooden house at the foot of a ledge with TNT on its edge; a "
-       "wooden fort beyond")
+       "explosions: two small pigs in a two-storey wooden house at the foot of a ledge with TNT on its edge behind a "
+       "stone lip almost as high as the crate; a wooden fort beyond")
 def _():
     blocks, _ = keep(13.0, 0.0, 2, ("wood",))
-    return tnt_ledge(x0=7.6, h=1.1, w=2.6, pigs=2) + Parts(blocks)
+    return tnt_ledge(x0=7.6, h=1.1, w=2.6, pigs=2, lip=0.45) + Parts(blocks)
 
 
 @level("s1_l08", "Hill and tower", "RRRR", [(31, 0.74), (40, 0.82)],
