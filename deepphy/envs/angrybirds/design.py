@@ -398,10 +398,10 @@ def _():
 
 
 @level("s2_l02", "Two huts", "BBBB", [(16, 0.9), (48, 0.7)],
-       "blue birds: a small pig under a stone slab on glass (ice) legs, a small pig in a wooden house below a ledge "
-       "with TNT")
+       "blue birds: a small pig under a stone slab on glass (ice) legs behind a high rock, a small pig in a wooden "
+       "house below a ledge with TNT")
 def _():
-    return slab_trap(8.4, lh=1.3, rh=1.8, lw=1.1, rw=0.5) + tnt_ledge(x0=10.9, h=1.3, w=2.0)
+    return slab_trap(8.4, lh=1.7, rh=1.8, lw=1.1, rw=0.5) + tnt_ledge(x0=10.9, h=1.3, w=2.0)
 
 
 @level("s2_l03", "Two depots", "RRRYY", [(24, 0.6), (25, 0.82)],
