@@ -288,10 +288,10 @@ def _():
 
 
 @level("s1_l10", "Outpost", "BBBBB", [(16, 0.9), (48, 0.68), (44, 0.8)],
-       "the blue bird against ice: a small pig under a stone slab on glass (ice) legs in a deep rock niche, a small "
+       "the blue bird against ice: a small pig under a stone slab on glass (ice) legs behind a high rock, a small "
        "pig in a one-storey wooden house below a ledge with TNT, a small pig on a far stone tower out of the blast")
 def _():
-    return (slab_trap(8.4, lh=1.7, rh=2.0, lw=1.1, rw=0.5) + tnt_ledge(x0=10.4, h=1.3, w=1.8, storeys=1)
+    return (slab_trap(8.4, lh=1.5, rh=2.0, lw=1.1, rw=0.5) + tnt_ledge(x0=10.4, h=1.3, w=1.8, storeys=1)
             + tower_pig(15.3, storeys=2, material="stone"))
 
 
