@@ -263,11 +263,11 @@ def _():
 
 
 @level("s1_l07", "Storehouse II", "RRRR", [(40, 0.6)],
-       "explosions: two small pigs in a two-storey wooden house at the foot of a ledge with TNT on its edge; a "
-       "wooden fort beyond")
+       "explosions: two small pigs in a two-storey wooden house at the foot of a ledge with TNT on its edge behind a "
+       "stone lip almost as high as the crate; a wooden fort beyond")
 def _():
     blocks, _ = keep(13.0, 0.0, 2, ("wood",))
-    return tnt_ledge(x0=7.6, h=1.1, w=2.6, pigs=2) + Parts(blocks)
+    return tnt_ledge(x0=7.6, h=1.1, w=2.6, pigs=2, lip=0.45) + Parts(blocks)
 
 
 @level("s1_l08", "Hill and tower", "RRRR", [(31, 0.74), (40, 0.82)],
@@ -287,12 +287,12 @@ def _():
             + tower_pig(15.2, storeys=2, lintel="rect_small"))
 
 
-@level("s1_l10", "Outpost", "BBBBB", [(16, 0.9), (48, 0.68)],
-       "the blue bird against ice: a small pig under a stone slab on glass (ice) legs in a rock niche, a small pig in "
-       "a wooden house below a ledge with TNT, a small pig on a far wooden tower")
+@level("s1_l10", "Outpost", "BBBBB", [(16, 0.9), (48, 0.68), (44, 0.8)],
+       "the blue bird against ice: a small pig under a stone slab on glass (ice) legs behind a high rock, a small "
+       "pig in a one-storey wooden house below a ledge with TNT, a small pig on a far stone tower out of the blast")
 def _():
-    return (slab_trap(8.4, lh=1.3, rh=2.0, lw=1.1, rw=0.5) + tnt_ledge(x0=10.6, h=1.3, w=1.8)
-            + tower_pig(15.05, storeys=2))
+    return (slab_trap(8.4, lh=1.5, rh=2.0, lw=1.1, rw=0.5) + tnt_ledge(x0=10.4, h=1.3, w=1.8, storeys=1)
+            + tower_pig(15.3, storeys=2, material="stone"))
 
 
 @level("s1_l11", "Crypt and quarry", "RBBB", [(12, 0.8), (50, 0.72)],
@@ -398,10 +398,10 @@ def _():
 
 
 @level("s2_l02", "Two huts", "BBBB", [(16, 0.9), (48, 0.7)],
-       "blue birds: a small pig under a stone slab on glass (ice) legs, a small pig in a wooden house below a ledge "
-       "with TNT")
+       "blue birds: a small pig under a stone slab on glass (ice) legs behind a high rock, a small pig in a wooden "
+       "house below a ledge with TNT")
 def _():
-    return slab_trap(8.4, lh=1.3, rh=1.8, lw=1.1, rw=0.5) + tnt_ledge(x0=10.9, h=1.3, w=2.0)
+    return slab_trap(8.4, lh=1.7, rh=1.8, lw=1.1, rw=0.5) + tnt_ledge(x0=10.9, h=1.3, w=2.0)
 
 
 @level("s2_l03", "Two depots", "RRRYY", [(24, 0.6), (25, 0.82)],
