@@ -344,6 +344,20 @@ def test_every_level_left_idle_for_10_s_changes_nothing():
         assert moved < 0.01 and gone == 0 and hurt == 0, (level_id, moved, gone, hurt)
 
 
+def test_every_level_lies_inside_the_picture():
+    """A model (and a person playing) sees the world from x = 0 to WORLD_W: every block, pig
+    and crate of every level, settled, lies inside it (a tower 0.14 u past the edge showed a
+    cut roof)."""
+    from deepphy.envs.angrybirds.sim import World
+
+    for level_id in level_ids():
+        world = World(load_level(level_id))  # held: its space owns the shapes read below
+        for thing in world.things:
+            for shape in thing.body.shapes:
+                bb = shape.cache_bb()
+                assert 0.0 <= bb.left and bb.right <= C.WORLD_W, (level_id, thing.kind, thing.index, round(bb.right, 3))
+
+
 def test_every_level_is_drawn_as_its_data_says():
     """A level's data are its scene: settling moves nothing far (a hollow box sliding 0.12 u
     to its chock is the most today; planks on uneven supports tip 4 degrees). A block

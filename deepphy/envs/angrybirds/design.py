@@ -284,7 +284,7 @@ def _():
        "boulder, a two-storey wooden house below a ledge with TNT, the top of a slim wooden tower")
 def _():
     return (boulder_hill(x0=5.4, top=2.4, flat=0.9, run=1.6, lw=0.9) + tnt_ledge(x0=10.8, h=1.2, w=1.6)
-            + tower_pig(15.2, storeys=2, lintel="rect_small"))
+            + tower_pig(15.15, storeys=2, lintel="rect_small"))
 
 
 @level("s1_l10", "Outpost", "BBBBB", [(16, 0.9), (48, 0.68), (44, 0.8)],
@@ -292,7 +292,7 @@ def _():
        "pig in a one-storey wooden house below a ledge with TNT, a small pig on a far stone tower out of the blast")
 def _():
     return (slab_trap(8.4, lh=1.5, rh=2.0, lw=1.1, rw=0.5) + tnt_ledge(x0=10.4, h=1.3, w=1.8, storeys=1)
-            + tower_pig(15.3, storeys=2, material="stone"))
+            + tower_pig(15.15, storeys=2, material="stone"))
 
 
 @level("s1_l11", "Crypt and quarry", "RBBB", [(12, 0.8), (50, 0.72)],
@@ -446,7 +446,7 @@ def _():
        "above a wooden house, a black bird for a small pig on a far wooden tower")
 def _():
     return (slab_trap(8.2, lh=1.3, rh=1.8, lw=1.0, rw=0.4, legs="wood") + tnt_ledge(x0=10.0, h=1.4, w=2.4)
-            + tower_pig(15.2, storeys=2, lintel="rect_small"))
+            + tower_pig(15.15, storeys=2, lintel="rect_small"))
 
 
 @level("s2_l09", "Crypt, store and tower", "KBYK", [(21, 0.61), (56, 0.7), (28, 0.45)],
