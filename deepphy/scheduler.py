@@ -62,8 +62,10 @@ def ray_errors(*names: str) -> tuple[type[BaseException], ...]:
 
 
 def worker_lost() -> tuple[type[BaseException], ...]:
-    """What an environment worker's death looks like to its caller."""
-    return (LostEpisode, *ray_errors("ActorDiedError", "ActorUnavailableError", "RayActorError"))
+    """What an environment worker's death looks like to its caller: the actor gone, or the
+    answer it gave lost with its node (a call's result too large to travel inside the reply
+    waits in the node's object store, and Ray cannot rebuild an actor call's result)."""
+    return (LostEpisode, *ray_errors("ActorDiedError", "ActorUnavailableError", "RayActorError", "ObjectLostError"))
 
 
 def cancel(ref: Any) -> None:
