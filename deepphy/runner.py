@@ -133,6 +133,7 @@ class _Run:
     done: int  # episodes finished before this session
     stream: Any
     began: float  # time.time() when the run began: its elapsed time counts from here
+    endpoints: list  # the model's endpoints (deepphy.agents.run_endpoints), read once
     view: StartView | None = None  # what the run is doing until its progress line begins
 
     @classmethod
@@ -141,7 +142,7 @@ class _Run:
         has passed (nothing written if one fails); a finished run's outcome, at once."""
         began = time.time()
         the_plan = plan(config)
-        run_endpoints(config, runtime.models_file)  # an endpoint the models file lacks fails here
+        endpoints = run_endpoints(config, runtime.models_file)  # an endpoint the models file lacks fails here
         # a missing key (an agent that cannot be built) fails here, before anything is written
         make_agent(config.model, runtime.models_file, env=config.env, agent=config.agent)
         store = RunStore.claim(out, config)  # another run's directory, or one in use: fails here
@@ -158,7 +159,7 @@ class _Run:
         except BaseException:
             store.discard()
             raise
-        return cls(the_plan, runtime, store, existing, done, stream, began)
+        return cls(the_plan, runtime, store, existing, done, stream, began, endpoints)
 
     def close(self) -> None:
         remove_status(self.store.path)
@@ -204,8 +205,7 @@ class _Run:
         import ray
         from deepphy.actors.rate_limiter import ensure_limiter
 
-        config, runtime, store, spec = self.config, self.runtime, self.store, self.plan.spec
-        endpoints = run_endpoints(config, runtime.models_file)
+        config, runtime, store, spec, endpoints = self.config, self.runtime, self.store, self.plan.spec, self.endpoints
         env_workers: list[Any] = []  # the actors this run started, stopped at its end however it ends
         model_actors: list[Any] = []
         limiters: list[Any] = []
